@@ -1,0 +1,35 @@
+"""Camera models behind one interface, and readers/writers for the calibration files users have.
+
+>>> from fisheyemotion import calib
+>>> cam = calib.load("camchain.yaml", camera="cam0")
+>>> rays, valid = cam.unproject(pixels)          # g(u): (..., 2) -> (..., 3) unit rays
+"""
+
+from .base import CameraModel, pixel_grid
+from .errors import CalibrationError
+from .models import DoubleSphere, EnhancedUnified, KannalaBrandt, Pinhole, RadialPoly, Unified
+from .readers import FORMATS, Rig, load, load_rig, parse, save_kalibr, save_opencv
+from .registry import MODELS, create, model_class, register
+
+__all__ = [
+    "FORMATS",
+    "MODELS",
+    "Rig",
+    "load",
+    "load_rig",
+    "parse",
+    "save_kalibr",
+    "save_opencv",
+    "CalibrationError",
+    "CameraModel",
+    "DoubleSphere",
+    "EnhancedUnified",
+    "KannalaBrandt",
+    "Pinhole",
+    "RadialPoly",
+    "Unified",
+    "create",
+    "model_class",
+    "pixel_grid",
+    "register",
+]

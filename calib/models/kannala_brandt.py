@@ -1,0 +1,54 @@
+"""Kannala-Brandt (equidistant polynomial) camera."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..base import CameraModel
+from ..registry import register
+
+
+@register
+@dataclass(frozen=True, kw_only=True)
+class KannalaBrandt(CameraModel):
+    r"""Kannala-Brandt model with four coefficients.
+
+    Known as OpenCV ``cv2.fisheye``, Basalt ``kb4``, Kalibr ``pinhole`` + ``equidistant`` and COLMAP
+    ``OPENCV_FISHEYE``.
+
+    Projection: :math:`\theta = \operatorname{atan2}(\sqrt{x^2+y^2}, z)` (the whole sphere, not
+    ``atan(r/z)``), :math:`d(\theta) = \theta (1 + k_1\theta^2 + k_2\theta^4 + k_3\theta^6 +
+    k_4\theta^8)`, :math:`u = f_x d(\theta)\, x/\sqrt{x^2+y^2} + c_x` (same for v).
+
+    Unprojection: safeguarded Newton solve of :math:`d(\theta) = r_d` on
+    :math:`[0, \theta_{max}]`.
+
+    Valid domain: :math:`\theta \le \theta_{max}`, the first angle where :math:`d'(\theta) = 0`
+    (or :math:`\pi`); pixels with :math:`r_d \le d(\theta_{max})`.
+    """
+
+    name: ClassVar[str] = "kannala_brandt"
+    param_names: ClassVar[tuple[str, ...]] = ("fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4")
+
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    k1: float = 0.0
+    k2: float = 0.0
+    k3: float = 0.0
+    k4: float = 0.0
+    width: int
+    height: int
+
+    def _radius(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        t2 = theta * theta
+        return theta * (1.0 + t2 * (self.k1 + t2 * (self.k2 + t2 * (self.k3 + t2 * self.k4))))
+
+    def _radius_derivative(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        t2 = theta * theta
+        return 1.0 + t2 * (3 * self.k1 + t2 * (5 * self.k2 + t2 * (7 * self.k3 + t2 * 9 * self.k4)))

@@ -1,0 +1,98 @@
+"""Rigid transforms: quaternions (x, y, z, w as in TUM, ROS and Basalt) and 4x4 matrices.
+
+The one implementation used by the readers, the engine and the pose files.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+#: Tolerance on ``R^T R - I`` and on a quaternion's norm for a transform to count as rigid.
+RIGID_TOL = 1e-6
+QUAT_NORM_TOL = 1e-3
+
+
+def quat_to_matrix(q: ArrayLike) -> NDArray[np.float64]:
+    """Rotation matrix of a quaternion ``(qx, qy, qz, qw)``, normalised first.
+
+    Raises
+    ------
+    ValueError
+        If ``q`` is not 4 finite numbers whose norm is within ``QUAT_NORM_TOL`` of 1.
+    """
+    q = np.asarray(q, dtype=np.float64)
+    if q.shape != (4,) or not np.isfinite(q).all():
+        raise ValueError(f"quaternion: expected 4 finite numbers (qx, qy, qz, qw), got {q!r}")
+    n = np.linalg.norm(q)
+    if abs(n - 1.0) > QUAT_NORM_TOL:
+        raise ValueError(f"quaternion: expected unit norm (rigid rotation), got norm {n:.6g}")
+    x, y, z, w = q / n
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def matrix_to_quat(rotation: ArrayLike) -> NDArray[np.float64]:
+    """Quaternion ``(qx, qy, qz, qw)`` with ``qw >= 0`` of a rotation matrix."""
+    m = np.asarray(rotation, dtype=np.float64)
+    tr = np.trace(m)
+    if tr > 0:
+        s = 2.0 * np.sqrt(tr + 1.0)
+        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, s / 4]
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
+        q = [s / 4, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s]
+    elif m[1, 1] > m[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
+        q = [(m[0, 1] + m[1, 0]) / s, s / 4, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s]
+    else:
+        s = 2.0 * np.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
+        q = [(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, s / 4, (m[1, 0] - m[0, 1]) / s]
+    q = np.asarray(q)
+    q /= np.linalg.norm(q)
+    return -q if q[3] < 0 else q
+
+
+def make_transform(rotation: ArrayLike, translation: ArrayLike) -> NDArray[np.float64]:
+    """4x4 matrix ``[[R, t], [0, 1]]``."""
+    out = np.eye(4)
+    out[:3, :3] = rotation
+    out[:3, 3] = translation
+    return out
+
+
+def invert_transform(transform: ArrayLike) -> NDArray[np.float64]:
+    """Inverse of a rigid 4x4 transform."""
+    t = np.asarray(transform, dtype=np.float64)
+    r = t[:3, :3]
+    return make_transform(r.T, -r.T @ t[:3, 3])
+
+
+def check_rigid(transform: ArrayLike, name: str) -> NDArray[np.float64]:
+    """Return ``transform`` as a float64 4x4 rigid transform or raise ValueError naming ``name``.
+
+    Rigid: finite, last row ``(0, 0, 0, 1)``, ``R^T R = I`` within ``RIGID_TOL`` and ``det R > 0``.
+    """
+    try:
+        t = np.asarray(transform, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected a 4x4 rigid transform of numbers") from None
+    if t.shape != (4, 4):
+        raise ValueError(f"{name}: expected a 4x4 rigid transform, got shape {t.shape}")
+    if not np.isfinite(t).all():
+        raise ValueError(f"{name}: expected finite values in the 4x4 transform")
+    if not np.allclose(t[3], [0, 0, 0, 1], atol=RIGID_TOL):
+        raise ValueError(f"{name}: expected last row (0, 0, 0, 1), got {t[3].tolist()}")
+    r = t[:3, :3]
+    err = np.abs(r.T @ r - np.eye(3)).max()
+    if err > RIGID_TOL or np.linalg.det(r) <= 0:
+        raise ValueError(
+            f"{name}: expected a rotation (R^T R = I, det R = +1), off by {err:.3g}; "
+            "the transform is not rigid"
+        )
+    return t
