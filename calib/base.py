@@ -168,13 +168,13 @@ class CameraModel:
         x, y, z = p[..., 0], p[..., 1], p[..., 2]
         rho = np.hypot(x, y)
         theta = np.arctan2(rho, z)
-        valid = np.isfinite(theta) & ((rho > 0) | (z > 0)) & (theta <= self.theta_max)
+        valid = np.isfinite(p).all(axis=-1) & ((rho > 0) | (z > 0)) & (theta <= self.theta_max)
+        fx, fy, cx, cy = self._affine()
         with np.errstate(all="ignore"):
             r = self._radius(theta)
             scale = np.where(rho > 0, r / np.where(rho > 0, rho, 1.0), 0.0)
-        valid &= np.isfinite(r)
-        fx, fy, cx, cy = self._affine()
-        pixels = np.stack([fx * scale * x + cx, fy * scale * y + cy], axis=-1)
+            pixels = np.stack([fx * scale * x + cx, fy * scale * y + cy], axis=-1)
+        valid &= np.isfinite(pixels).all(axis=-1)
         pixels[~valid] = np.nan
         return pixels, valid
 

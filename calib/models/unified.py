@@ -24,9 +24,11 @@ class Unified(CameraModel):
     Unprojection (closed form): :math:`k = (\xi + \sqrt{1 + (1 - \xi^2) r^2}) / (1 + r^2)`,
     ray :math:`= (k m_x, k m_y, k - \xi)`.
 
-    Valid domain: :math:`\theta \le \theta_{max}`: :math:`\cos\theta_{max} = -1/\xi` for
-    :math:`\xi > 1`, else :math:`\pi`; pixels with :math:`r^2 \le 1/(\xi^2 - 1)` for
-    :math:`\xi > 1`. Parameter: :math:`\xi \ge 0`.
+    Valid domain: :math:`\theta \le \theta_{max}` with
+    :math:`\cos\theta_{max} = -\min(\xi, 1/\xi)`: for :math:`\xi > 1` the radial map folds
+    there, for :math:`\xi \le 1` the denominator :math:`\cos\theta + \xi` vanishes (the pixel
+    radius goes to infinity); pixels with :math:`r^2 \le 1/(\xi^2 - 1)` for :math:`\xi > 1`,
+    every pixel otherwise. Parameter: :math:`\xi \ge 0`.
     """
 
     name: ClassVar[str] = "unified"
