@@ -24,11 +24,15 @@ from ._fields import Fields
 from .rig import Rig
 
 
+# cv2 reports parse errors as cv2.error, and some malformed XML as SystemError.
+_CV2_ERRORS = (cv2.error, SystemError)
+
+
 def _node_value(node: cv2.FileNode):
     if node.empty() or node.isNone():
         return None
-    if node.isMap():  # !!opencv-matrix (None for any other mapping)
-        return node.mat()
+    if node.isMap():
+        return _matrix(node)
     if node.isInt() or node.isReal():
         return node.real()
     if node.isString():
@@ -38,11 +42,30 @@ def _node_value(node: cv2.FileNode):
     return None
 
 
+def _matrix(node: cv2.FileNode) -> np.ndarray | None:
+    """Elements of an ``!!opencv-matrix`` node, checked before they are read.
+
+    ``FileNode.mat()`` is not used: on a matrix node whose ``rows``/``cols`` disagree with its
+    ``data`` (a truncated or hand-edited file) OpenCV 5.0 corrupts the heap and the process
+    aborts later; found by fuzzing the readers.
+    """
+    rows, cols, data = node.getNode("rows"), node.getNode("cols"), node.getNode("data")
+    if not (rows.isInt() and cols.isInt() and data.isSeq()):
+        return None
+    n_rows, n_cols = int(rows.real()), int(cols.real())
+    if n_rows < 0 or n_cols < 0 or data.size() != n_rows * n_cols:
+        return None
+    items = [data.at(i) for i in range(data.size())]
+    if not all(it.isInt() or it.isReal() for it in items):
+        return None
+    return np.array([it.real() for it in items], dtype=np.float64).reshape(n_rows, n_cols)
+
+
 def read(text: str, source: str) -> Rig:
     f = Fields(source)
     try:
         fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
-    except cv2.error as exc:
+    except _CV2_ERRORS as exc:
         msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else "parse error"
         raise f.fail("(file)", f"not a readable OpenCV FileStorage file: {msg}") from None
     try:
@@ -52,9 +75,13 @@ def read(text: str, source: str) -> Rig:
 
         def get(key: str, required: bool = True):
             try:
-                value = _node_value(root.getNode(key))
-            except cv2.error:
-                raise f.fail(key, "expected a number, string or matrix") from None
+                node = root.getNode(key)
+                present = not (node.empty() or node.isNone())
+                value = _node_value(node) if present else None
+            except _CV2_ERRORS:
+                present, value = True, None
+            if present and value is None:
+                raise f.fail(key, "expected a number, a string or a well-formed !!opencv-matrix")
             if value is None and required:
                 raise f.fail(key, "missing")
             return value
