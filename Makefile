@@ -19,7 +19,9 @@ test: $(STAMP)
 	$(BIN)/python -m pytest -q tests
 
 bench: $(STAMP)
-	$(BIN)/python -m pytest -q benchmarks --benchmark-only --benchmark-columns=min,median,mean,rounds
+	mkdir -p .benchmarks
+	$(BIN)/python -m pytest -q benchmarks --benchmark-only --benchmark-columns=min,median,rounds --benchmark-json=.benchmarks/latest.json
+	$(BIN)/python benchmarks/report.py .benchmarks/latest.json
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
