@@ -1,0 +1,148 @@
+"""Every knob of the detector in one frozen, validated dataclass."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+FLOW_METHODS = ("farneback", "dis")
+DIS_PRESETS = ("ultrafast", "fast", "medium")
+LAMBDA_P_MODES = ("constant", "adaptive")
+
+#: Farneback settings; OpenCV's sample values, the paper does not state its own.
+FARNEBACK_DEFAULTS = {"pyr_scale": 0.5, "levels": 3, "winsize": 15, "iterations": 3,
+                      "poly_n": 5, "poly_sigma": 1.2}
+
+
+@dataclass(frozen=True, kw_only=True)
+class Params:
+    """Parameters of :func:`fisheyemotion.constraints` and :func:`fisheyemotion.detect`.
+
+    Attributes
+    ----------
+    weights : tuple of 4 floats
+        ``(mu_e, mu_d, mu_h, mu_p)`` of the weighted mean (paper: 1, 1, 0.2, 0.2).
+    lambda_h : float
+        Dead band of the positive-height deviation (paper: 0.001).
+    lambda_p : float
+        Dead band of the anti-parallel deviation in ``constant`` mode (paper: 0.001).
+    lambda_p_mode : {'constant', 'adaptive'}
+        ``adaptive``: ``lambda_p = lambda_p_ratio * |p'_r x p|``, proportional to the displacement
+        a road point would have at that pixel (the paper's alternative).
+    lambda_p_ratio : float
+        Factor of the adaptive mode.
+    depth_both_views : bool
+        Positive depth in both views: also flag points that triangulate behind the *previous*
+        camera (``p'`` beyond ``e'``). The paper checks the current camera only.
+    min_baseline : float
+        Metres; below it the camera is standing still and ``xi = |p' x p|`` is used.
+    epipole_margin : float
+        Rays with ``|p x e'| <`` this (sine of the angle to the epipole) are invalid.
+    horizon_margin : float
+        Height and anti-parallel apply where ``p . h >`` this and ``p' . h >`` this.
+    grid : int
+        Side of the square cells the flow is averaged on (paper: 5).
+    flow : {'farneback', 'dis'}
+    farneback : dict
+        ``cv2.calcOpticalFlowFarneback`` settings (``pyr_scale``, ``levels``, ``winsize``,
+        ``iterations``, ``poly_n``, ``poly_sigma``).
+    dis_preset : {'ultrafast', 'fast', 'medium'}
+    threshold : float
+        Likelihood above which a cell is moving.
+    min_area : int
+        Regions smaller than this many pixels are dropped.
+    saturation : float
+        Likelihood mapped to full colour when drawing (paper: 0.02).
+    """
+
+    weights: tuple[float, float, float, float] = (1.0, 1.0, 0.2, 0.2)
+    lambda_h: float = 0.001
+    lambda_p: float = 0.001
+    lambda_p_mode: str = "constant"
+    lambda_p_ratio: float = 0.5
+    depth_both_views: bool = True
+    min_baseline: float = 1e-3
+    epipole_margin: float = 1e-3
+    horizon_margin: float = 0.0
+    grid: int = 5
+    flow: str = "farneback"
+    farneback: dict = field(default_factory=lambda: dict(FARNEBACK_DEFAULTS))
+    dis_preset: str = "medium"
+    threshold: float = 0.005
+    min_area: int = 100
+    saturation: float = 0.02
+
+    def __post_init__(self) -> None:
+        w = tuple(self.weights)
+        if len(w) != 4 or not all(_finite(v) and v >= 0 for v in w) or sum(w) <= 0:
+            raise ValueError(f"weights: expected 4 non-negative numbers with a positive sum, got {self.weights!r}")
+        object.__setattr__(self, "weights", tuple(float(v) for v in w))
+        for name in ("lambda_h", "lambda_p", "lambda_p_ratio", "min_baseline", "epipole_margin",
+                     "threshold", "saturation"):
+            v = getattr(self, name)
+            if not _finite(v) or v < 0:
+                raise ValueError(f"{name}: expected a finite number >= 0, got {v!r}")
+        if not _finite(self.horizon_margin) or not -1 < self.horizon_margin < 1:
+            raise ValueError(f"horizon_margin: expected a number in (-1, 1), got {self.horizon_margin!r}")
+        if self.saturation <= 0:
+            raise ValueError(f"saturation: expected > 0, got {self.saturation!r}")
+        for name, options in (("lambda_p_mode", LAMBDA_P_MODES), ("flow", FLOW_METHODS),
+                              ("dis_preset", DIS_PRESETS)):
+            if getattr(self, name) not in options:
+                raise ValueError(f"{name}: expected one of {', '.join(options)}, got {getattr(self, name)!r}")
+        for name in ("grid", "min_area"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < (1 if name == "grid" else 0):
+                raise ValueError(f"{name}: expected an integer >= {1 if name == 'grid' else 0}, got {v!r}")
+        if not isinstance(self.depth_both_views, bool):
+            raise ValueError(f"depth_both_views: expected a bool, got {self.depth_both_views!r}")
+        fb = dict(self.farneback) if isinstance(self.farneback, dict) else None
+        if fb is None or set(fb) - set(FARNEBACK_DEFAULTS):
+            raise ValueError(f"farneback: expected a dict with keys among {sorted(FARNEBACK_DEFAULTS)}, got {self.farneback!r}")
+        object.__setattr__(self, "farneback", {**FARNEBACK_DEFAULTS, **fb})
+
+    def replace(self, **changes: Any) -> Params:
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+    def to_dict(self) -> dict[str, Any]:
+        out = dataclasses.asdict(self)
+        out["weights"] = list(self.weights)
+        return out
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> Params:
+        """Build from a mapping; unknown keys are an error naming them."""
+        if not isinstance(values, dict):
+            raise ValueError(f"params: expected a mapping, got {type(values).__name__}")
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise ValueError(f"params: unknown key(s) {unknown}; expected among {sorted(known)}")
+        values = dict(values)
+        if "weights" in values and isinstance(values["weights"], list):
+            values["weights"] = tuple(values["weights"])
+        return cls(**values)
+
+    @classmethod
+    def load(cls, path: str | Path) -> Params:
+        """Read a YAML or JSON file of parameters."""
+        import yaml
+
+        text = Path(path).read_text(encoding="utf-8")
+        try:
+            values = json.loads(text) if str(path).endswith(".json") else yaml.safe_load(text)
+        except (ValueError, yaml.YAMLError) as exc:
+            raise ValueError(f"{path}: cannot parse parameters: {exc}") from None
+        try:
+            return cls.from_dict(values or {})
+        except ValueError as exc:
+            raise ValueError(f"{path}: {exc}") from None
+
+
+def _finite(v: Any) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
