@@ -6,8 +6,13 @@
 
 from . import calib
 from .constraints import ConstraintResult, constraints
+from .detect import Detection, Grid, MotionDetector, detect
 from .params import Params
 from .road import Road
+from .segment import Region
 
-__all__ = ["ConstraintResult", "Params", "Road", "calib", "constraints"]
+__all__ = [
+    "ConstraintResult", "Detection", "Grid", "MotionDetector", "Params", "Region", "Road",
+    "calib", "constraints", "detect",
+]
 __version__ = "0.1.0"

@@ -1,0 +1,239 @@
+"""``detect()`` for a frame pair and the streaming ``MotionDetector``, in the style of cv2.
+
+>>> likelihood, mask = fisheyemotion.detect(prev, curr, pose0, pose1, camera=cam)
+>>> detector = fisheyemotion.MotionDetector(cam)
+>>> for frame, pose in stream:
+...     result = detector.apply(frame, pose)   # None for the first frame
+"""
+
+from __future__ import annotations
+
+import json
+from collections import OrderedDict
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .calib.base import CameraModel
+from .constraints import ConstraintResult, constraints
+from .flow import FlowEstimator, grid_average, grid_centres, grid_upsample
+from .frames import check_pose, to_gray
+from .params import Params
+from .road import Road
+from .segment import Region, segment_cells
+
+CONSTRAINT_NAMES = ("epipolar", "depth", "height", "antiparallel")
+
+
+class Grid(NamedTuple):
+    """Cell-level data of one detection (``rows x cols`` cells of ``size`` pixels).
+
+    Attributes
+    ----------
+    size : int
+    centres : ndarray, shape (rows, cols, 2)
+        Pixel ``u`` of each cell centre in the previous frame.
+    flow : ndarray, shape (rows, cols, 2)
+        Mean flow of each cell; ``u' = u + flow``.
+    likelihood : ndarray, shape (rows, cols)
+        NaN where the cell is not valid.
+    valid : ndarray of bool, shape (rows, cols)
+    """
+
+    size: int
+    centres: NDArray[np.float64]
+    flow: NDArray[np.float64]
+    likelihood: NDArray[np.float64]
+    valid: NDArray[np.bool_]
+
+
+@dataclass(frozen=True, eq=False)
+class Detection:
+    """Result of :func:`detect`; unpacks as ``likelihood, mask``.
+
+    Attributes
+    ----------
+    likelihood : ndarray of float32, shape (H, W)
+        Motion likelihood; 0 outside the camera's valid region and at invalid cells.
+    mask : ndarray of uint8, shape (H, W)
+        255 on moving regions, else 0.
+    maps : dict of str to ndarray of float32, shape (H, W)
+        Per-constraint deviations ``epipolar``, ``depth``, ``height``, ``antiparallel``.
+    flow : ndarray of float32, shape (H, W, 2)
+        The dense flow.
+    grid : Grid
+    regions : list of Region
+    static_camera : bool
+    """
+
+    likelihood: NDArray[np.float32]
+    mask: NDArray[np.uint8]
+    maps: dict[str, NDArray[np.float32]] = field(repr=False)
+    flow: NDArray[np.float32] = field(repr=False)
+    grid: Grid = field(repr=False)
+    regions: list[Region] = field(default_factory=list)
+    static_camera: bool = False
+
+    def __iter__(self):
+        return iter((self.likelihood, self.mask))
+
+    def __len__(self) -> int:
+        return 2
+
+    def __getitem__(self, index: int):
+        return (self.likelihood, self.mask)[index]
+
+
+class MotionDetector:
+    """Stateful detector for one camera: caches the grid rays, the valid mask and the flow object.
+
+    Parameters
+    ----------
+    camera : CameraModel
+        Any model of :mod:`fisheyemotion.calib`; frames must have its size.
+    road : Road, optional
+        Road plane in the world frame (default ``z = 0``).
+    params : Params, optional
+    """
+
+    def __init__(self, camera: CameraModel, road: Road | None = None,
+                 params: Params | None = None) -> None:
+        if not isinstance(camera, CameraModel):
+            raise ValueError(f"camera: expected a fisheyemotion.calib camera model, got {type(camera).__name__}")
+        self.camera = camera
+        self.road = Road() if road is None else road
+        self.params = Params() if params is None else params
+        if not isinstance(self.road, Road):
+            raise ValueError(f"road: expected a fisheyemotion.Road, got {type(self.road).__name__}")
+        if not isinstance(self.params, Params):
+            raise ValueError(f"params: expected a fisheyemotion.Params, got {type(self.params).__name__}")
+        g = self.params.grid
+        if g > min(camera.width, camera.height):
+            raise ValueError(f"params.grid: {g} is larger than the {camera.width}x{camera.height} image")
+        self.size = (camera.width, camera.height)
+        self._centres = grid_centres(camera.width, camera.height, g)
+        self._rays0, valid0 = camera.unproject(self._centres)
+        pixel_valid = camera.valid_pixel_mask()
+        # A cell is used only if all of its pixels have rays.
+        self._cell_valid = valid0 & (grid_average(pixel_valid.astype(np.float32), g) == 1.0)
+        self._pixel_valid = pixel_valid
+        self._flow = FlowEstimator(self.params)
+        self._prev: NDArray[np.uint8] | None = None
+        self._prev_pose: NDArray[np.float64] | None = None
+
+    def detect(self, prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray,
+               pose1: NDArray) -> Detection:
+        """Detect moving objects between two frames.
+
+        Parameters
+        ----------
+        prev, curr : ndarray of uint8, shape (H, W) or (H, W, 3)
+            Gray or BGR frames of the camera's size.
+        pose0, pose1 : ndarray, shape (4, 4)
+            ``world_from_cam`` at ``prev`` and at ``curr``.
+        """
+        g0 = to_gray(prev, "prev", size=self.size)
+        g1 = to_gray(curr, "curr", size=self.size)
+        t0, t1 = check_pose(pose0, "pose0"), check_pose(pose1, "pose1")
+        return self._detect_gray(g0, g1, t0, t1)
+
+    def apply(self, frame: NDArray[np.uint8], pose: NDArray) -> Detection | None:
+        """Streaming: detect between the previous call's frame and this one.
+
+        Returns None on the first call. Only the last frame and pose are kept.
+        """
+        gray = to_gray(frame, "frame", size=self.size)
+        t = check_pose(pose, "pose")
+        prev, prev_pose = self._prev, self._prev_pose
+        self._prev, self._prev_pose = gray, t
+        if prev is None:
+            return None
+        return self._detect_gray(prev, gray, prev_pose, t)
+
+    def reset(self) -> None:
+        """Forget the stream's previous frame."""
+        self._prev = self._prev_pose = None
+
+    def detect_flow(self, flow: NDArray, pose0: NDArray, pose1: NDArray) -> Detection:
+        """Detect from a dense flow ``(H, W, 2)`` computed elsewhere (``u' = u + flow``)."""
+        f = np.asarray(flow)
+        if f.shape != (self.size[1], self.size[0], 2) or f.dtype.kind != "f":
+            raise ValueError(f"flow: expected a float array of shape {(self.size[1], self.size[0], 2)}, "
+                             f"got {f.dtype} {f.shape}")
+        t0, t1 = check_pose(pose0, "pose0"), check_pose(pose1, "pose1")
+        return self._from_flow(f.astype(np.float32, copy=False), t0, t1)
+
+    def _detect_gray(self, g0, g1, t0, t1) -> Detection:
+        return self._from_flow(self._flow(g0, g1), t0, t1)
+
+    def _from_flow(self, flow, t0, t1) -> Detection:
+        p = self.params
+        cell_flow = grid_average(flow, p.grid)
+        rays1, valid1 = self.camera.unproject(self._centres + cell_flow)
+        res = constraints(self._rays0, rays1, t0, t1, road=self.road, params=p)
+        valid = res.valid & valid1 & self._cell_valid
+        return self._assemble(flow, cell_flow, res, valid)
+
+    def _assemble(self, flow, cell_flow, res: ConstraintResult, valid) -> Detection:
+        p, (w, h) = self.params, self.size
+
+        def to_image(cells: NDArray[np.float64]) -> NDArray[np.float32]:
+            full = grid_upsample(np.where(valid, cells, 0.0).astype(np.float32), p.grid, w, h)
+            full[~self._pixel_valid] = 0
+            return full
+
+        cell_likelihood = np.where(valid, res.likelihood, np.nan)
+        likelihood = to_image(res.likelihood)
+        maps = {name: to_image(getattr(res, name)) for name in CONSTRAINT_NAMES}
+        cell_mask, regions = segment_cells(cell_likelihood, threshold=p.threshold, grid=p.grid,
+                                           min_area=p.min_area)
+        mask = grid_upsample(cell_mask.astype(np.uint8) * 255, p.grid, w, h)
+        mask[~self._pixel_valid] = 0
+        grid = Grid(p.grid, self._centres, cell_flow, cell_likelihood, valid)
+        return Detection(likelihood, mask, maps, flow, grid, regions, res.static_camera)
+
+
+_DETECTORS: OrderedDict[tuple, MotionDetector] = OrderedDict()
+_CACHE_SIZE = 4
+
+
+def detect(prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray, pose1: NDArray, *,
+           camera: CameraModel, road: Road | None = None, params: Params | None = None) -> Detection:
+    """Moving objects between two frames of a moving fisheye camera.
+
+    Parameters
+    ----------
+    prev, curr : ndarray of uint8, shape (H, W) or (H, W, 3)
+        Gray or BGR frames, as cv2 gives them, of the camera's size.
+    pose0, pose1 : ndarray, shape (4, 4)
+        ``world_from_cam`` at ``prev`` and at ``curr``.
+    camera : CameraModel
+    road : Road, optional
+        Default: the plane ``z = 0`` of the world frame.
+    params : Params, optional
+
+    Returns
+    -------
+    Detection
+        Unpacks as ``likelihood, mask`` (``(H, W)`` float32 and uint8 0/255).
+
+    Notes
+    -----
+    The grid rays of a camera are computed once and kept (for the last few cameras used), as a
+    :class:`MotionDetector` keeps them.
+    """
+    road = Road() if road is None else road
+    params = Params() if params is None else params
+    if not isinstance(params, Params):
+        raise ValueError(f"params: expected a fisheyemotion.Params, got {type(params).__name__}")
+    key = (camera, road, json.dumps(params.to_dict(), sort_keys=True))
+    try:
+        detector = _DETECTORS.pop(key)
+    except (KeyError, TypeError):
+        detector = MotionDetector(camera, road, params)
+    _DETECTORS[key] = detector
+    while len(_DETECTORS) > _CACHE_SIZE:
+        _DETECTORS.popitem(last=False)
+    return detector.detect(prev, curr, pose0, pose1)

@@ -1,0 +1,74 @@
+"""Dense optical flow (OpenCV) and its average on a square grid, as the paper feeds the engine."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from .params import Params
+
+_DIS_PRESETS = {"ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST,
+                "fast": cv2.DISOPTICAL_FLOW_PRESET_FAST,
+                "medium": cv2.DISOPTICAL_FLOW_PRESET_MEDIUM}
+
+
+class FlowEstimator:
+    """Dense flow from ``prev`` to ``curr``: ``prev(y, x) ~ curr(y + f_y, x + f_x)``.
+
+    Holds the OpenCV object (DIS) between calls, as ``cv2`` apps do.
+    """
+
+    def __init__(self, params: Params) -> None:
+        self.params = params
+        self._dis = (cv2.DISOpticalFlow_create(_DIS_PRESETS[params.dis_preset])
+                     if params.flow == "dis" else None)
+
+    def __call__(self, prev: NDArray[np.uint8], curr: NDArray[np.uint8],
+                 initial: NDArray[np.float32] | None = None) -> NDArray[np.float32]:
+        """Flow ``(H, W, 2)`` float32; ``initial`` is an optional starting estimate."""
+        if self._dis is not None:
+            # DIS uses the flow argument as its initial estimate when one is given.
+            flow = None if initial is None else initial.astype(np.float32, copy=True)
+            return self._dis.calc(prev, curr, flow)
+        fb = self.params.farneback
+        flags = 0
+        flow = None
+        if initial is not None:
+            flow = initial.astype(np.float32, copy=True)
+            flags = cv2.OPTFLOW_USE_INITIAL_FLOW
+        return cv2.calcOpticalFlowFarneback(
+            prev, curr, flow, fb["pyr_scale"], int(fb["levels"]), int(fb["winsize"]),
+            int(fb["iterations"]), int(fb["poly_n"]), fb["poly_sigma"], flags)
+
+
+def grid_shape(width: int, height: int, grid: int) -> tuple[int, int]:
+    """``(rows, cols)`` of whole ``grid x grid`` cells covering the image from its top-left."""
+    return height // grid, width // grid
+
+
+def grid_centres(width: int, height: int, grid: int) -> NDArray[np.float64]:
+    """Pixel coordinates ``(rows, cols, 2)`` of the cell centres (OpenCV pixel convention)."""
+    rows, cols = grid_shape(width, height, grid)
+    u = np.arange(cols) * grid + (grid - 1) / 2
+    v = np.arange(rows) * grid + (grid - 1) / 2
+    uu, vv = np.meshgrid(u, v)
+    return np.stack([uu, vv], axis=-1)
+
+
+def grid_average(image: NDArray, grid: int) -> NDArray:
+    """Mean of each ``grid x grid`` cell: ``(H, W, ...)`` -> ``(H // grid, W // grid, ...)``.
+
+    Pixels beyond the last whole cell (right and bottom remainders) are not averaged.
+    """
+    rows, cols = image.shape[0] // grid, image.shape[1] // grid
+    crop = image[: rows * grid, : cols * grid]
+    blocks = crop.reshape(rows, grid, cols, grid, *image.shape[2:])
+    return blocks.mean(axis=(1, 3), dtype=np.float64)
+
+
+def grid_upsample(cells: NDArray, grid: int, width: int, height: int) -> NDArray:
+    """Cell values back to ``(H, W, ...)`` (remainder rows/columns take the last cell's value)."""
+    full = np.repeat(np.repeat(cells, grid, axis=0), grid, axis=1)
+    pad = [(0, height - full.shape[0]), (0, width - full.shape[1])] + [(0, 0)] * (cells.ndim - 2)
+    return np.pad(full, pad, mode="edge") if any(p[1] for p in pad) else full
