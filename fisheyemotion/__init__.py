@@ -4,7 +4,7 @@
 >>> likelihood, mask = fm.detect(prev, curr, pose0, pose1, camera=cam)
 """
 
-from . import calib
+from . import calib, poses
 from .constraints import ConstraintResult, constraints
 from .detect import Detection, Grid, MotionDetector, detect
 from .params import Params

@@ -1,0 +1,193 @@
+"""detect(), MotionDetector, drawing and the detect CLI on rendered scenes with exact truth."""
+
+from __future__ import annotations
+
+import tracemalloc
+
+import cv2
+import numpy as np
+import pytest
+
+import fisheyemotion as fm
+from fisheyemotion import draw, synth
+from fisheyemotion.cli import main
+
+from .cameras import TUMVI_KB
+
+CAM = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 200.0, "fy": 200.0, "cx": 319.5,
+                                "cy": 239.5, "width": 640, "height": 480})
+PAIR = synth.parse_scenario({
+    "name": "pair", "frames": 3, "ego": {"speed_kmh": 5},
+    "camera": {"position": [2, 0, 1.0], "pitch_deg": 15},
+    "objects": [{"id": 1, "kind": "car", "category": "crossing", "start": [9, -5],
+                 "heading_deg": 90, "speed_kmh": 15}],
+})
+
+
+@pytest.fixture(scope="module")
+def pair():
+    return synth.render_frames(CAM, PAIR)
+
+
+def test_detect_finds_the_crossing_box_and_little_else(pair):
+    f0, f1 = pair[0], pair[1]
+    likelihood, mask = fm.detect(f0.image, f1.image, f0.pose, f1.pose, camera=CAM)
+    assert likelihood.dtype == np.float32 and likelihood.shape == (480, 640)
+    assert mask.dtype == np.uint8 and set(np.unique(mask)) <= {0, 255}
+    moving = f0.moving > 0
+    static = ~moving & CAM.valid_pixel_mask()
+    assert (mask[moving] > 0).mean() > 0.8
+    assert (mask[static] > 0).mean() < 0.05
+    assert np.median(likelihood[moving]) > 5 * np.median(likelihood[static])
+
+
+def test_detection_carries_maps_flow_grid_and_regions(pair):
+    f0, f1 = pair[0], pair[1]
+    det = fm.detect(f0.image, f1.image, f0.pose, f1.pose, camera=CAM)
+    assert set(det.maps) == {"epipolar", "depth", "height", "antiparallel"}
+    assert det.flow.shape == (480, 640, 2) and det.grid.size == 5
+    assert det.grid.centres.shape == (96, 128, 2)
+    big = det.regions[0]
+    x, y, w, h = big.bbox
+    ys, xs = np.nonzero(f0.moving)
+    assert x <= np.median(xs) <= x + w and y <= np.median(ys) <= y + h
+    # The crossing car is seen by the epipolar constraint.
+    static = (f0.moving == 0) & CAM.valid_pixel_mask()
+    epi = det.maps["epipolar"]
+    assert np.median(epi[f0.moving > 0]) > 10 * np.median(epi[static])
+    likelihood, mask = det
+    assert likelihood is det.likelihood and det[1] is mask and len(det) == 2
+
+
+def test_outside_the_valid_circle_is_zero():
+    # Double sphere with alpha > 0.5: the valid region is a disk of radius fx / sqrt(2 alpha - 1).
+    wide = fm.calib.DoubleSphere(fx=60, fy=60, cx=159.5, cy=119.5, xi=-0.2, alpha=0.7,
+                                 width=320, height=240)
+    frames = synth.render_frames(wide, PAIR, frames=2, supersample=1)
+    assert not wide.valid_pixel_mask().all()
+    lik, mask = fm.detect(frames[0].image, frames[1].image, frames[0].pose, frames[1].pose,
+                          camera=wide)
+    outside = ~wide.valid_pixel_mask()
+    assert np.all(lik[outside] == 0) and np.all(mask[outside] == 0)
+    assert np.all(frames[1].image[outside] == 0)
+
+
+def test_ground_truth_flow_gives_a_clean_static_scene(pair):
+    f0, f1 = pair[0], pair[1]
+    det = fm.MotionDetector(CAM).detect_flow(np.nan_to_num(f1.flow), f0.pose, f1.pose)
+    static = (f0.moving == 0) & CAM.valid_pixel_mask()
+    assert np.percentile(det.likelihood[static], 99) < 1e-3
+    assert (det.mask[f0.moving > 0] > 0).mean() > 0.9
+
+
+def test_streaming_apply_matches_detect_and_starts_with_none(pair):
+    det = fm.MotionDetector(CAM, params=fm.Params(flow="dis", dis_preset="fast"))
+    assert det.apply(pair[0].image, pair[0].pose) is None
+    streamed = det.apply(pair[1].image, pair[1].pose)
+    direct = fm.MotionDetector(CAM, params=fm.Params(flow="dis", dis_preset="fast")).detect(
+        pair[0].image, pair[1].image, pair[0].pose, pair[1].pose)
+    np.testing.assert_array_equal(streamed.mask, direct.mask)
+
+
+def test_gray_and_bgr_frames_give_the_same_result(pair):
+    f0, f1 = pair[0], pair[1]
+    g0, g1 = (cv2.cvtColor(f.image, cv2.COLOR_BGR2GRAY) for f in (f0, f1))
+    a = fm.detect(f0.image, f1.image, f0.pose, f1.pose, camera=CAM)
+    b = fm.detect(g0, g1, f0.pose, f1.pose, camera=CAM)
+    np.testing.assert_array_equal(a.likelihood, b.likelihood)
+
+
+def test_memory_stays_flat_over_a_long_stream():
+    cam = fm.calib.KannalaBrandt(fx=40, fy=40, cx=31.5, cy=23.5, width=64, height=48)
+    det = fm.MotionDetector(cam, params=fm.Params(flow="dis", dis_preset="ultrafast", grid=4))
+    rng = np.random.default_rng(0)
+    frames = [rng.integers(0, 255, (48, 64), dtype=np.uint8) for _ in range(4)]
+    pose = np.eye(4)
+    tracemalloc.start()
+    peaks = []
+    for i in range(10_000):
+        pose = pose.copy()
+        pose[0, 3] += 0.01
+        det.apply(frames[i % 4], pose)
+        if i in (1000, 9999):
+            peaks.append(tracemalloc.get_traced_memory()[0])
+    tracemalloc.stop()
+    assert peaks[1] < peaks[0] + 256 * 1024
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        (dict(prev=np.zeros((480, 640), np.float32)), "prev.*uint8"),
+        (dict(curr=np.zeros((240, 320), np.uint8)), "curr.*640x480"),
+        (dict(curr=np.zeros((480, 640, 2), np.uint8)), "curr.*shape"),
+        (dict(pose0=np.eye(3)), "pose0"),
+        (dict(pose1=np.full((4, 4), np.inf)), "pose1"),
+        (dict(pose1=np.diag([1.0, 1.0, -1.0, 1.0])), "pose1"),
+    ],
+)
+def test_bad_inputs_name_the_argument(pair, change, match):
+    args = dict(prev=pair[0].image, curr=pair[1].image, pose0=pair[0].pose, pose1=pair[1].pose)
+    args.update(change)
+    with pytest.raises(ValueError, match=match):
+        fm.detect(args["prev"], args["curr"], args["pose0"], args["pose1"], camera=CAM)
+
+
+def test_bad_camera_and_params():
+    with pytest.raises(ValueError, match="camera"):
+        fm.MotionDetector("kb")
+    with pytest.raises(ValueError, match="grid"):
+        fm.Params(grid=0)
+    with pytest.raises(ValueError, match="unknown key.*gird"):
+        fm.Params.from_dict({"gird": 5})
+    with pytest.raises(ValueError, match="flow"):
+        fm.Params(flow="raft")
+    p = fm.Params(threshold=0.01, flow="dis")
+    assert fm.Params.from_dict(p.to_dict()) == p
+
+
+def test_drawing_returns_bgr_images_and_the_fig6_layout(pair):
+    f0, f1 = pair[0], pair[1]
+    det = fm.detect(f0.image, f1.image, f0.pose, f1.pose, camera=CAM)
+    for img in (draw.flow_arrows(f0.image, det), draw.likelihood_map(det),
+                draw.overlay_mask(f0.image, det.mask), draw.annotate(f0.image, det),
+                draw.heatmap(det.maps["epipolar"], vmax=0.02)):
+        assert img.dtype == np.uint8 and img.shape == (480, 640, 3)
+    overlay = draw.overlay_mask(f0.image, det.mask)
+    sel = det.mask > 0
+    assert (overlay[sel][:, 1].astype(int) >= f0.image[sel][:, 1]).all()  # greener
+    fig = draw.fig6([(f0.image, det, "crossing")])
+    assert len(fig.axes) == 7
+
+
+def test_detect_cli_on_a_sequence_folder(tmp_path, pair):
+    seq = synth.write_sequence(tmp_path / "seq", CAM, PAIR, frames=3, progress=False)
+    out = tmp_path / "out"
+    assert main(["detect", str(seq), "--out", str(out), "--quiet"]) == 0
+    assert len(list((out / "annotated").glob("*.png"))) == 2
+    with np.load(out / "likelihood" / "000001.npz") as z:
+        assert z["likelihood"].shape == (480, 640)
+    import pandas as pd
+
+    regions = pd.read_csv(out / "regions.csv")
+    assert (regions.frame >= 1).all() and len(regions) >= 1
+
+
+def test_detect_cli_on_a_video_with_explicit_files(tmp_path, pair):
+    video = tmp_path / "in.avi"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 15, (640, 480))
+    for f in pair:
+        writer.write(f.image)
+    writer.release()
+    fm.poses.write_tum(tmp_path / "poses.txt", [0, 1 / 15, 2 / 15], [f.pose for f in pair])
+    fm.calib.save_opencv(CAM, tmp_path / "calib.yaml")
+    out = tmp_path / "out"
+    code = main(["detect", str(video), "--calib", str(tmp_path / "calib.yaml"), "--poses",
+                 str(tmp_path / "poses.txt"), "--out", str(out), "--quiet"])
+    assert code == 0 and (out / "annotated.mp4").stat().st_size > 0
+
+
+def test_detect_cli_errors_are_one_line_and_exit_2(tmp_path, capsys):
+    assert main(["detect", str(tmp_path / "missing.mp4"), "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "missing.mp4" in err
