@@ -3,7 +3,132 @@
 from __future__ import annotations
 
 import argparse
+import shlex
+import sys
+from pathlib import Path
+
+import pandas as pd
+
+from fisheyemotion import calib, synth
+from fisheyemotion.cli import REPO_DATA, CliError, calibration_table
+from fisheyemotion.params import Params
+
+from .evaluate import evaluate, sequence_paths
+from .report import table2_by_flow, write_report
+
+DEMO_CAMERA = "front_kb_640x480.yaml"
+
+
+def _params(args: argparse.Namespace) -> Params:
+    return Params.load(args.params) if getattr(args, "params", None) else Params()
+
+
+def _flows(text: str) -> list[str]:
+    flows = [f.strip() for f in text.split(",") if f.strip()]
+    bad = [f for f in flows if f not in ("farneback", "dis")]
+    if bad or not flows:
+        raise CliError(f"--flow: expected a comma-separated list of farneback, dis; got {text!r}")
+    return flows
+
+
+def run_eval(paths: list[Path], params: Params, flows: list[str], out: Path, *,
+             workers: int | None, scheduler: str | None, progress: bool,
+             commands: list[str] | None = None, title: str = "fisheyemotion evaluation"):
+    results = []
+    for flow in flows:
+        results += evaluate(paths, params.replace(flow=flow), workers=workers,
+                            scheduler=scheduler, progress=progress)
+    report = write_report(results, out, params, commands=commands, title=title)
+    return results, report
+
+
+def cmd_eval(args: argparse.Namespace) -> int:
+    paths = sequence_paths(args.seq_dirs)
+    params = _params(args)
+    results, report = run_eval(paths, params, _flows(args.flow), Path(args.out),
+                               workers=args.workers, scheduler=args.scheduler,
+                               progress=not args.quiet,
+                               commands=["fisheyemotion " + shlex.join(sys.argv[1:])])
+    _print_table2(results)
+    print(f"report: {report}")
+    return 0
+
+
+def _print_table2(results) -> None:
+    wide = table2_by_flow(results)
+    with pd.option_context("display.float_format", lambda v: f"{v:.2f}", "display.width", 160):
+        print(wide.to_string(index=False))
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from .compare import compare
+
+    cameras = [(Path(c).stem, calib.load(c)) for c in args.calib]
+    if len(cameras) < 2:
+        raise CliError("--calib: give at least two calibration files to compare")
+    scenarios = args.scenarios.split(",") if args.scenarios else synth.list_scenarios()
+    out = compare(cameras, scenarios, Path(args.out), params=_params(args), frames=args.frames,
+                  workers=args.workers, progress=not args.quiet)
+    print(f"report: {out}")
+    return 0
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    data = Path(args.data)
+    calibs = sorted(p for p in (data / "calib").iterdir()
+                    if p.suffix in {".yaml", ".yml", ".json", ".xml", ".txt"})
+    print(f"Bundled calibrations in {data / 'calib'}:")
+    print(calibration_table(calibs).to_string(index=False))
+    out = Path(args.out)
+    camera = calib.load(data / "calib" / DEMO_CAMERA)
+    names = args.scenarios.split(",") if args.scenarios else synth.list_scenarios()
+    seqs = []
+    for name in names:
+        sc = synth.load_scenario(data / "scenarios" / f"{name}.yaml")
+        seq_dir = out / "sequences" / name
+        synth.write_sequence(seq_dir, camera, sc, frames=args.frames, flow=False,
+                             progress=not args.quiet)
+        seqs.append(seq_dir)
+    print(f"Rendered {len(seqs)} scenarios x {args.frames} frames with {DEMO_CAMERA} into "
+          f"{out / 'sequences'}")
+    results, report = run_eval(
+        seqs, Params(), _flows(args.flow), out / "report", workers=args.workers, scheduler=None,
+        progress=not args.quiet, title="fisheyemotion demo: bundled scenarios",
+        commands=[f"fisheyemotion demo --frames {args.frames} --flow {args.flow}"])
+    _print_table2(results)
+    print(f"Report: {report.resolve()}")
+    return 0
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's commands to the ``fisheyemotion`` parser."""
+    p = sub.add_parser("eval", help="evaluate detection on sequence folders and write a report")
+    p.add_argument("seq_dirs", nargs="+", metavar="SEQ_DIR",
+                   help="sequence folders, or folders holding them")
+    p.add_argument("--params", help="YAML/JSON file of Params")
+    p.add_argument("--flow", default="farneback", help="comma-separated: farneback,dis")
+    p.add_argument("--out", required=True, help="report folder")
+    p.add_argument("--workers", type=int, help="local processes (default: CPU count)")
+    p.add_argument("--scheduler", help="Dask distributed scheduler address (tcp://host:port)")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_eval)
+
+    p = sub.add_parser("compare", help="the same scenarios through several camera models")
+    p.add_argument("--calib", action="append", required=True, help="calibration file (repeat)")
+    p.add_argument("--scenarios", help="comma-separated bundled scenario names (default: all)")
+    p.add_argument("--frames", type=int, default=10)
+    p.add_argument("--params", help="YAML/JSON file of Params")
+    p.add_argument("--out", required=True)
+    p.add_argument("--workers", type=int)
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_compare)
+
+    p = sub.add_parser("demo", help="render the bundled scenarios, detect, write a report")
+    p.add_argument("--data", default=str(REPO_DATA), help="the data/ folder (default: bundled)")
+    p.add_argument("--out", default="data/generated/demo", help="output folder")
+    p.add_argument("--frames", type=int, default=8, help="frames per scenario")
+    p.add_argument("--scenarios", help="comma-separated scenario names (default: all)")
+    p.add_argument("--flow", default="farneback,dis", help="comma-separated: farneback,dis")
+    p.add_argument("--workers", type=int)
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_demo)
