@@ -14,7 +14,6 @@ import pandas as pd
 from tqdm import tqdm
 
 from fisheyemotion.detect import CONSTRAINT_NAMES, MotionDetector
-from fisheyemotion.flow import FlowEstimator
 from fisheyemotion.frames import to_gray
 from fisheyemotion.params import Params
 from fisheyemotion.sequence import Sequence
@@ -58,10 +57,10 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
     params = Params() if params is None else params
     seq = Sequence(path)
     cam = seq.camera
-    valid = cam.valid_pixel_mask()
-    flow_of = FlowEstimator(params)
-    main = MotionDetector(cam, params=params)
-    variants = {name: MotionDetector(cam, params=params.replace(weights=w))
+    roi = seq.roi()
+    valid = cam.valid_pixel_mask() & (True if roi is None else roi > 0)
+    main = MotionDetector(cam, params=params, roi=roi)
+    variants = {name: MotionDetector(cam, params=params.replace(weights=w), roi=roi)
                 for name, w in ABLATION_WEIGHTS.items()} if ablation else {}
     obj_rows, frame_rows, abl_rows = [], [], []
     moving_above = static_above = None
@@ -71,9 +70,12 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
     gray_next = to_gray(seq.frame(0), "frame")
     for k in range(1, len(seq)):
         g0, gray_next = gray_next, to_gray(seq.frame(k), "frame")
-        flow = flow_of(g0, gray_next)
         pose0, pose1 = seq.poses[k - 1], seq.poses[k]
-        det = main.detect_flow(flow, pose0, pose1)
+        if params.fb_check:
+            flow, backward = main.flow(g0, gray_next, pose0, pose1, backward=True)
+        else:
+            flow, backward = main.flow(g0, gray_next, pose0, pose1), None
+        det = main.detect_flow(flow, pose0, pose1, backward=backward)
         ids, gt = seq.ids(k - 1), seq.mask(k - 1)
         frame_objects = objects[objects.frame == k - 1]
         rows = object_metrics(det.mask, ids, frame_objects, range_limit=range_limit,
@@ -84,7 +86,7 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
             pix = ids == r["id"]
             r.update({"sequence": seq.name, "frame": k - 1})
             r.update({f"c_{n}": float(weighted[n][pix].mean()) for n in CONSTRAINT_NAMES})
-            score = r["covered"] if r["detected"] else 0
+            score = r["pixels"]  # the largest view of each category, detected or not
             if score > examples.get(r["category"], (0,))[0]:
                 examples[r["category"]] = (score, str(seq.path), k)
         obj_rows += rows
@@ -99,7 +101,7 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
         n_moving += int(((gt > 0) & valid).sum())
         n_static += int(((gt == 0) & valid).sum())
         for name, detector in variants.items():
-            d = detector.detect_flow(flow, pose0, pose1)
+            d = detector.detect_flow(flow, pose0, pose1, backward=backward)
             for r in object_metrics(d.mask, ids, frame_objects, range_limit=range_limit,
                                     min_coverage=min_coverage):
                 abl_rows.append({"variant": name, "kind": "object", **r})

@@ -163,7 +163,7 @@ def fig6_grid(results: list[SequenceResult], params: Params) -> Figure | None:
             continue
         _, path, k = best[cat]
         seq = Sequence(path)
-        det = MotionDetector(seq.camera, params=params).detect(
+        det = MotionDetector(seq.camera, params=params, roi=seq.roi()).detect(
             seq.frame(k - 1), seq.frame(k), seq.poses[k - 1], seq.poses[k])
         cols.append((seq.frame(k - 1), det, f"{cat} ({seq.name} #{k - 1})"))
     return draw.fig6(cols, saturation=params.saturation) if cols else None

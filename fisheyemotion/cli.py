@@ -136,7 +136,8 @@ class PoseLookup:
 
 
 def run_detect(source: Path, camera: calib.CameraModel, poses: PoseLookup, out: Path, *,
-               road: Road, params: Params, write_video: bool, progress: bool = True) -> pd.DataFrame:
+               road: Road, params: Params, write_video: bool, progress: bool = True,
+               roi: np.ndarray | None = None) -> pd.DataFrame:
     """Detect over a whole input; writes annotations, likelihood maps and regions.csv."""
     from .draw import annotate
 
@@ -144,7 +145,7 @@ def run_detect(source: Path, camera: calib.CameraModel, poses: PoseLookup, out: 
     (out / "likelihood").mkdir(exist_ok=True)
     if not write_video:
         (out / "annotated").mkdir(exist_ok=True)
-    detector = MotionDetector(camera, road, params)
+    detector = MotionDetector(camera, road, params, roi=roi)
     writer = None
     rows = []
     frames = iter_frames(source)
@@ -195,9 +196,15 @@ def cmd_detect(args: argparse.Namespace) -> int:
     if args.flow:
         params = params.replace(flow=args.flow)
     lookup = PoseLookup(poses_path, args.match, args.max_dt)
+    roi_path = Path(args.roi) if args.roi else (source / "roi.png" if is_sequence else None)
+    roi = None
+    if roi_path is not None and (args.roi or roi_path.exists()):
+        roi = cv2.imread(str(roi_path), cv2.IMREAD_GRAYSCALE)
+        if roi is None:
+            raise CliError(f"{roi_path}: cannot be read as an image")
     write_video = not source.is_dir()
     table = run_detect(source, camera, lookup, Path(args.out), road=_parse_road(args.road),
-                       params=params, write_video=write_video, progress=not args.quiet)
+                       params=params, write_video=write_video, progress=not args.quiet, roi=roi)
     print(f"{len(table)} regions in {table['frame'].nunique()} frames; written to {args.out}")
     return 0
 
@@ -241,6 +248,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-dt", type=float, default=0.02, help="timestamp tolerance, seconds")
     p.add_argument("--road", help="road plane 'nx,ny,nz,offset' in the world frame (default 0,0,1,0)")
     p.add_argument("--params", help="YAML/JSON file of Params")
+    p.add_argument("--roi", help="mask image of pixels to use (default: INPUT/roi.png if present)")
     p.add_argument("--flow", choices=("farneback", "dis"), help="override the flow method")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--quiet", action="store_true")

@@ -13,6 +13,7 @@ from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -21,6 +22,7 @@ from .constraints import ConstraintResult, constraints
 from .flow import FlowEstimator, grid_average, grid_centres, grid_upsample
 from .frames import check_pose, to_gray
 from .params import Params
+from .prior import EgoFlowPrior
 from .road import Road
 from .segment import Region, segment_cells
 
@@ -96,10 +98,13 @@ class MotionDetector:
     road : Road, optional
         Road plane in the world frame (default ``z = 0``).
     params : Params, optional
+    roi : ndarray, shape (H, W), optional
+        Pixels to use (non-zero), e.g. without the vehicle's own body; default: every pixel
+        the camera model gives a ray.
     """
 
     def __init__(self, camera: CameraModel, road: Road | None = None,
-                 params: Params | None = None) -> None:
+                 params: Params | None = None, *, roi: NDArray | None = None) -> None:
         if not isinstance(camera, CameraModel):
             raise ValueError(f"camera: expected a fisheyemotion.calib camera model, got {type(camera).__name__}")
         self.camera = camera
@@ -116,10 +121,18 @@ class MotionDetector:
         self._centres = grid_centres(camera.width, camera.height, g)
         self._rays0, valid0 = camera.unproject(self._centres)
         pixel_valid = camera.valid_pixel_mask()
+        if roi is not None:
+            roi = np.asarray(roi)
+            if roi.shape != pixel_valid.shape:
+                raise ValueError(f"roi: expected shape {pixel_valid.shape} (the camera's), got {roi.shape}")
+            pixel_valid &= roi != 0
         # A cell is used only if all of its pixels have rays.
         self._cell_valid = valid0 & (grid_average(pixel_valid.astype(np.float32), g) == 1.0)
         self._pixel_valid = pixel_valid
         self._flow = FlowEstimator(self.params)
+        self._prior = (EgoFlowPrior(camera, distance=self.params.prior_distance)
+                       if self.params.flow_prior == "ego" else None)
+        self._pixel_coords = None
         self._prev: NDArray[np.uint8] | None = None
         self._prev_pose: NDArray[np.float64] | None = None
 
@@ -156,24 +169,65 @@ class MotionDetector:
         """Forget the stream's previous frame."""
         self._prev = self._prev_pose = None
 
-    def detect_flow(self, flow: NDArray, pose0: NDArray, pose1: NDArray) -> Detection:
-        """Detect from a dense flow ``(H, W, 2)`` computed elsewhere (``u' = u + flow``)."""
-        f = np.asarray(flow)
-        if f.shape != (self.size[1], self.size[0], 2) or f.dtype.kind != "f":
-            raise ValueError(f"flow: expected a float array of shape {(self.size[1], self.size[0], 2)}, "
-                             f"got {f.dtype} {f.shape}")
+    def detect_flow(self, flow: NDArray, pose0: NDArray, pose1: NDArray, *,
+                    backward: NDArray | None = None) -> Detection:
+        """Detect from a dense flow ``(H, W, 2)`` computed elsewhere (``u' = u + flow``).
+
+        ``backward`` (the flow from the current to the previous frame) enables the
+        forward-backward check when ``params.fb_check`` is set.
+        """
+        shape = (self.size[1], self.size[0], 2)
+        arrays = {"flow": flow, "backward": backward}
+        for name, a in arrays.items():
+            if a is None:
+                continue
+            a = np.asarray(a)
+            if a.shape != shape or a.dtype.kind != "f":
+                raise ValueError(f"{name}: expected a float array of shape {shape}, got {a.dtype} {a.shape}")
         t0, t1 = check_pose(pose0, "pose0"), check_pose(pose1, "pose1")
-        return self._from_flow(f.astype(np.float32, copy=False), t0, t1)
+        return self._from_flow(np.asarray(flow, np.float32), t0, t1,
+                               None if backward is None else np.asarray(backward, np.float32))
+
+    def flow(self, prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray,
+             pose1: NDArray, *, backward: bool = False):
+        """The dense flow ``detect`` uses, from gray frames and checked poses, started from the
+        ego prior if set; with ``backward=True`` also the flow from ``curr`` to ``prev``."""
+        initial = None if self._prior is None else self._prior(pose0, pose1, self.road)
+        forward = self._flow(prev, curr, initial)
+        if not backward:
+            return forward
+        back_initial = None if self._prior is None else self._prior(pose1, pose0, self.road)
+        return forward, self._flow(curr, prev, back_initial)
 
     def _detect_gray(self, g0, g1, t0, t1) -> Detection:
-        return self._from_flow(self._flow(g0, g1), t0, t1)
+        if self.params.fb_check:
+            forward, backward = self.flow(g0, g1, t0, t1, backward=True)
+            return self._from_flow(forward, t0, t1, backward)
+        return self._from_flow(self.flow(g0, g1, t0, t1), t0, t1)
 
-    def _from_flow(self, flow, t0, t1) -> Detection:
+    def _consistent_cells(self, flow, backward) -> NDArray[np.bool_]:
+        """Cells whose mean forward-backward error is within tolerance."""
+        h, w = flow.shape[:2]
+        if self._pixel_coords is None:
+            xx, yy = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
+            self._pixel_coords = (xx, yy)
+        xx, yy = self._pixel_coords
+        back_at = cv2.remap(backward, xx + flow[..., 0], yy + flow[..., 1], cv2.INTER_LINEAR,
+                            borderMode=cv2.BORDER_REPLICATE)
+        error = np.linalg.norm(flow + back_at, axis=-1)
+        p = self.params
+        cell_error = grid_average(error, p.grid)
+        cell_mag = np.linalg.norm(grid_average(flow, p.grid), axis=-1)
+        return cell_error <= p.fb_tolerance + p.fb_relative * cell_mag
+
+    def _from_flow(self, flow, t0, t1, backward=None) -> Detection:
         p = self.params
         cell_flow = grid_average(flow, p.grid)
         rays1, valid1 = self.camera.unproject(self._centres + cell_flow)
         res = constraints(self._rays0, rays1, t0, t1, road=self.road, params=p)
         valid = res.valid & valid1 & self._cell_valid
+        if p.fb_check and backward is not None:
+            valid &= self._consistent_cells(flow, backward)
         return self._assemble(flow, cell_flow, res, valid)
 
     def _assemble(self, flow, cell_flow, res: ConstraintResult, valid) -> Detection:
@@ -200,7 +254,8 @@ _CACHE_SIZE = 4
 
 
 def detect(prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray, pose1: NDArray, *,
-           camera: CameraModel, road: Road | None = None, params: Params | None = None) -> Detection:
+           camera: CameraModel, road: Road | None = None, params: Params | None = None,
+           roi: NDArray | None = None) -> Detection:
     """Moving objects between two frames of a moving fisheye camera.
 
     Parameters
@@ -213,6 +268,8 @@ def detect(prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray, pos
     road : Road, optional
         Default: the plane ``z = 0`` of the world frame.
     params : Params, optional
+    roi : ndarray, shape (H, W), optional
+        Pixels to use (non-zero); default all pixels with a ray.
 
     Returns
     -------
@@ -228,11 +285,12 @@ def detect(prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray, pos
     params = Params() if params is None else params
     if not isinstance(params, Params):
         raise ValueError(f"params: expected a fisheyemotion.Params, got {type(params).__name__}")
-    key = (camera, road, json.dumps(params.to_dict(), sort_keys=True))
+    roi_key = None if roi is None else hash(np.asarray(roi).tobytes())
+    key = (camera, road, json.dumps(params.to_dict(), sort_keys=True), roi_key)
     try:
         detector = _DETECTORS.pop(key)
     except (KeyError, TypeError):
-        detector = MotionDetector(camera, road, params)
+        detector = MotionDetector(camera, road, params, roi=roi)
     _DETECTORS[key] = detector
     while len(_DETECTORS) > _CACHE_SIZE:
         _DETECTORS.popitem(last=False)

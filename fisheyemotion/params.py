@@ -12,6 +12,7 @@ from typing import Any
 FLOW_METHODS = ("farneback", "dis")
 DIS_PRESETS = ("ultrafast", "fast", "medium")
 LAMBDA_P_MODES = ("constant", "adaptive")
+FLOW_PRIORS = ("none", "ego")
 
 #: Farneback settings; OpenCV's sample values, the paper does not state its own.
 FARNEBACK_DEFAULTS = {"pyr_scale": 0.5, "levels": 3, "winsize": 15, "iterations": 3,
@@ -51,6 +52,19 @@ class Params:
         ``cv2.calcOpticalFlowFarneback`` settings (``pyr_scale``, ``levels``, ``winsize``,
         ``iterations``, ``poly_n``, ``poly_sigma``).
     dis_preset : {'ultrafast', 'fast', 'medium'}
+    flow_prior : {'none', 'ego'}
+        ``ego``: start the flow method from the flow a static scene would have (road plane below
+        the horizon, ``prior_distance`` above it), predicted from the poses and the camera.
+    prior_distance : float
+        Metres, for the ego prior's rays that do not meet the road closer than that.
+    fb_check : bool
+        Forward-backward consistency: also compute the flow from ``curr`` to ``prev``; cells whose
+        mean round-trip error exceeds ``fb_tolerance + fb_relative * |flow|`` pixels are not
+        scored (invalid) instead of producing a deviation from a wrong flow.
+    fb_tolerance : float
+        Pixels.
+    fb_relative : float
+        Fraction of the flow magnitude added to the tolerance.
     threshold : float
         Likelihood above which a cell is moving.
     min_area : int
@@ -72,6 +86,11 @@ class Params:
     flow: str = "farneback"
     farneback: dict = field(default_factory=lambda: dict(FARNEBACK_DEFAULTS))
     dis_preset: str = "medium"
+    flow_prior: str = "none"
+    prior_distance: float = 15.0
+    fb_check: bool = False
+    fb_tolerance: float = 1.0
+    fb_relative: float = 0.05
     threshold: float = 0.005
     min_area: int = 100
     saturation: float = 0.02
@@ -82,24 +101,27 @@ class Params:
             raise ValueError(f"weights: expected 4 non-negative numbers with a positive sum, got {self.weights!r}")
         object.__setattr__(self, "weights", tuple(float(v) for v in w))
         for name in ("lambda_h", "lambda_p", "lambda_p_ratio", "min_baseline", "epipole_margin",
-                     "threshold", "saturation"):
+                     "threshold", "saturation", "fb_tolerance", "fb_relative"):
             v = getattr(self, name)
             if not _finite(v) or v < 0:
                 raise ValueError(f"{name}: expected a finite number >= 0, got {v!r}")
         if not _finite(self.horizon_margin) or not -1 < self.horizon_margin < 1:
             raise ValueError(f"horizon_margin: expected a number in (-1, 1), got {self.horizon_margin!r}")
+        if not _finite(self.prior_distance) or self.prior_distance <= 0:
+            raise ValueError(f"prior_distance: expected > 0 metres, got {self.prior_distance!r}")
         if self.saturation <= 0:
             raise ValueError(f"saturation: expected > 0, got {self.saturation!r}")
         for name, options in (("lambda_p_mode", LAMBDA_P_MODES), ("flow", FLOW_METHODS),
-                              ("dis_preset", DIS_PRESETS)):
+                              ("dis_preset", DIS_PRESETS), ("flow_prior", FLOW_PRIORS)):
             if getattr(self, name) not in options:
                 raise ValueError(f"{name}: expected one of {', '.join(options)}, got {getattr(self, name)!r}")
         for name in ("grid", "min_area"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < (1 if name == "grid" else 0):
                 raise ValueError(f"{name}: expected an integer >= {1 if name == 'grid' else 0}, got {v!r}")
-        if not isinstance(self.depth_both_views, bool):
-            raise ValueError(f"depth_both_views: expected a bool, got {self.depth_both_views!r}")
+        for name in ("depth_both_views", "fb_check"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name}: expected a bool, got {getattr(self, name)!r}")
         fb = dict(self.farneback) if isinstance(self.farneback, dict) else None
         if fb is None or set(fb) - set(FARNEBACK_DEFAULTS):
             raise ValueError(f"farneback: expected a dict with keys among {sorted(FARNEBACK_DEFAULTS)}, got {self.farneback!r}")

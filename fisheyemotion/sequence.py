@@ -8,6 +8,7 @@ A folder per sequence::
     flow/NNNNNN.npz       optional: ``flow`` (H, W, 2) from frame N-1 to N, ``range`` (H, W)
     poses.txt             TUM format, world_from_cam, timestamp = frame / fps
     calib.yaml            OpenCV FileStorage (readable by fisheyemotion.calib.load)
+    roi.png               optional: 255 where the camera sees the scene, 0 on the vehicle's body
     objects.csv           frame, id, kind, category, moving, distance, visible_pixels
     scenario.yaml         the spec the sequence was rendered from
 """
@@ -105,6 +106,10 @@ class Sequence:
 
     def ids(self, index: int) -> NDArray[np.uint16] | None:
         return self._png("ids", index, cv2.IMREAD_UNCHANGED)
+
+    def roi(self) -> NDArray[np.uint8] | None:
+        p = self.path / "roi.png"
+        return cv2.imread(str(p), cv2.IMREAD_GRAYSCALE) if p.exists() else None
 
     def flow(self, index: int) -> dict[str, NDArray] | None:
         p = self.path / "flow" / self.frame_paths[index].name.replace(".png", ".npz")

@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..calib.base import CameraModel, pixel_grid
-from .scenario import Box, Scenario
+from .scenario import EGO_ID, Box, Scenario
 from .textures import sample
 
 SKY, ROAD = -1, 0
@@ -37,7 +37,8 @@ class FrameTruth:
     image : ndarray of uint8, shape (H, W, 3)
         BGR; black outside the camera's valid region.
     ids : ndarray of uint16, shape (H, W)
-        Box id at each pixel centre; 0 for road, sky and invalid pixels.
+        Box id at each pixel centre; 0 for road, sky and invalid pixels; ``EGO_ID`` (65535) for
+        the ego vehicle's own body.
     moving : ndarray of uint8, shape (H, W)
         255 where a moving box is seen.
     range : ndarray of float32, shape (H, W)
@@ -102,7 +103,16 @@ class Renderer:
 
     # ---- geometry -----------------------------------------------------------------------
     def _boxes_at(self, t: float) -> list[tuple[Box, np.ndarray]]:
-        return [(b, b.world_from_box(t)) for b in self.scenario.boxes]
+        out = [(b, b.world_from_box(t)) for b in self.scenario.boxes]
+        body = self.scenario.ego_body()
+        if body is not None:  # rigidly attached to the vehicle
+            out.append((body, self.scenario.ego.world_from_vehicle(t) @ body.world_from_box(0.0)))
+        return out
+
+    @property
+    def _all_boxes(self) -> list[Box]:
+        body = self.scenario.ego_body()
+        return list(self.scenario.boxes) + ([body] if body is not None else [])
 
     def intersect(self, origin: NDArray, dirs: NDArray, time: float) -> Hits:
         """Nearest hits of world rays ``dirs`` (N, 3) from ``origin`` at scenario time ``time``."""
@@ -160,7 +170,7 @@ class Renderer:
         road = hits.obj == ROAD
         if road.any():
             colour[road] = self._road_colour(hits.local[road])
-        for i, box in enumerate(self.scenario.boxes):
+        for i, box in enumerate(self._all_boxes):
             sel = hits.obj == i + 1
             if not sel.any():
                 continue
@@ -198,6 +208,14 @@ class Renderer:
         dirs = self._rays[self._valid] @ pose[:3, :3].T
         return self.intersect(pose[:3, 3], dirs, self.scenario.time(index))
 
+    def roi(self) -> NDArray[np.uint8]:
+        """255 where the camera sees the scene, 0 where it sees its own vehicle or nothing."""
+        ids = np.zeros((self.camera.height, self.camera.width), np.uint16)
+        hits = self.hits(0)
+        box_ids = np.array([0] + [b.id for b in self._all_boxes], dtype=np.uint16)
+        ids[self._valid] = box_ids[np.maximum(hits.obj, 0)]
+        return np.where(self._valid & (ids != EGO_ID), 255, 0).astype(np.uint8)
+
     def render(self, index: int) -> FrameTruth:
         """Frame ``index`` with its ground truth (flow from frame ``index - 1``)."""
         cam, sc = self.camera, self.scenario
@@ -220,7 +238,7 @@ class Renderer:
         # Ground truth at pixel centres.
         hits = self.hits(index)
         ids = np.zeros((h, w), np.uint16)
-        box_ids = np.array([0] + [b.id for b in sc.boxes], dtype=np.uint16)
+        box_ids = np.array([0] + [b.id for b in self._all_boxes], dtype=np.uint16)
         ids[self._valid] = box_ids[np.maximum(hits.obj, 0)]
         moving_ids = [b.id for b in sc.boxes if b.moving]
         moving = np.where(np.isin(ids, moving_ids) & (ids > 0), 255, 0).astype(np.uint8)
@@ -240,10 +258,9 @@ class Renderer:
         sky = prev.obj == SKY
         road = prev.obj == ROAD
         world[road] = prev.local[road]
-        for i, box in enumerate(sc.boxes):
+        for i, (box, p) in enumerate(self._boxes_at(t1)):
             sel = prev.obj == i + 1
             if sel.any():
-                p = box.world_from_box(t1)
                 world[sel] = prev.local[sel] @ p[:3, :3].T + p[:3, 3]
         rays = np.empty_like(world)
         rays[~sky] = (world[~sky] - pose1[:3, 3]) @ pose1[:3, :3]

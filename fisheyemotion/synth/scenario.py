@@ -60,12 +60,20 @@ def _rot_x(a: float) -> np.ndarray:
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
+#: Object id of the ego vehicle's own body in ``ids`` maps.
+EGO_ID = 65535
+
+
 @dataclass(frozen=True)
 class Ego:
+    """Ego trajectory (constant speed and yaw rate) and the vehicle's body, ``(length, width,
+    height)`` metres, which extends backwards from just behind the camera (``None``: no body)."""
+
     speed_kmh: float = 20.0
     yaw_rate_deg_s: float = 0.0
     start: tuple[float, float] = (0.0, -1.75)
     heading_deg: float = 0.0
+    body: tuple[float, float, float] | None = (4.4, 1.8, 1.45)
 
     def world_from_vehicle(self, t: float) -> np.ndarray:
         """Vehicle pose at time ``t`` (constant speed and yaw rate)."""
@@ -148,6 +156,15 @@ class Scenario:
     def ego_static(self) -> bool:
         return self.ego.speed_kmh == 0.0
 
+    def ego_body(self) -> Box | None:
+        """The ego vehicle's body as a box in the *vehicle* frame (None if the spec has none)."""
+        if self.ego.body is None:
+            return None
+        length, width, height = self.ego.body
+        front = self.camera.position[0] - 0.1
+        return Box(id=EGO_ID, kind="box", center=(front - length / 2, 0.0),
+                   size=(length, width, height), texture="camera")
+
 
 # ---- parsing with errors that name the field -------------------------------------------------
 
@@ -223,11 +240,13 @@ def parse_scenario(doc: Any, source: str = "<scenario>") -> Scenario:
     if isinstance(frames, bool) or not isinstance(frames, int) or frames < 2:
         raise r.fail("frames", f"expected an integer >= 2, got {frames!r}")
     e = r.mapping(d.get("ego"), "ego")
-    r.known(e, ("speed_kmh", "yaw_rate_deg_s", "start", "heading_deg"), "ego")
+    r.known(e, ("speed_kmh", "yaw_rate_deg_s", "start", "heading_deg", "body"), "ego")
+    body = e.get("body", Ego.body)
     ego = Ego(speed_kmh=r.number(e, "speed_kmh", "ego", 20.0, lo=0, hi=200),
               yaw_rate_deg_s=r.number(e, "yaw_rate_deg_s", "ego", 0.0, lo=-90, hi=90),
               start=r.vector(e, "start", "ego", 2, (0.0, -1.75)),
-              heading_deg=r.number(e, "heading_deg", "ego", 0.0))
+              heading_deg=r.number(e, "heading_deg", "ego", 0.0),
+              body=None if body is None else r.vector(e, "body", "ego", 3, Ego.body, positive=True))
     c = r.mapping(d.get("camera"), "camera")
     r.known(c, ("position", "pitch_deg", "yaw_deg", "roll_deg"), "camera")
     mount = Mount(position=r.vector(c, "position", "camera", 3, (2.0, 0.0, 1.0)),

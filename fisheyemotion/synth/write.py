@@ -98,6 +98,7 @@ def write_sequence(out: str | os.PathLike, camera: CameraModel, scenario: Scenar
         rows.extend(object_rows(scenario, truth))
     write_tum(out / "poses.txt", [scenario.time(k) for k in range(n)], poses)
     save_opencv(camera, out / "calib.yaml")
+    cv2.imwrite(str(out / "roi.png"), renderer.roi())
     pd.DataFrame(rows, columns=list(OBJECT_COLUMNS)).to_csv(out / "objects.csv", index=False)
     (out / "scenario.yaml").write_text(yaml.safe_dump(scenario_doc(scenario), sort_keys=False))
     return out
