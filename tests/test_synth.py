@@ -63,7 +63,8 @@ def test_static_points_land_where_the_camera_model_projects_them(crossing):
     # And a fresh ray cast at the new pixel finds the same 3-D point (where not occluded).
     x1, hits1, _ = _world_points(r, 1, projected[good])
     same = np.linalg.norm(x1 - x0[static][good], axis=1) < 1e-6
-    assert same.mean() > 0.97
+    body = hits1.obj == len(sc.boxes) + 1  # the ego vehicle's body now hides the point
+    assert same[~body].mean() > 0.97
 
 
 def test_ground_truth_flow_of_moving_points_follows_the_object(crossing):
