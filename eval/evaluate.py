@@ -51,8 +51,8 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
                       ablation: bool = True) -> SequenceResult:
     """Detect on every consecutive frame pair of a sequence folder and score it.
 
-    Detections on pair ``(k-1, k)`` live on frame ``k-1``'s pixels (``u' = u + flow``), so they are
-    scored against frame ``k-1``'s ground truth.
+    Detections on pair ``(k - gap, k)`` live on frame ``k - gap``'s pixels (``u' = u + flow``), so
+    they are scored against that frame's ground truth (``gap = params.frame_gap``).
     """
     params = Params() if params is None else params
     seq = Sequence(path)
@@ -67,32 +67,34 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
     n_moving = n_static = 0
     examples: dict = {}
     objects = seq.objects
-    gray_next = to_gray(seq.frame(0), "frame")
-    for k in range(1, len(seq)):
-        g0, gray_next = gray_next, to_gray(seq.frame(k), "frame")
-        pose0, pose1 = seq.poses[k - 1], seq.poses[k]
+    gap = params.frame_gap
+    grays = [to_gray(seq.frame(i), "frame") for i in range(min(gap, len(seq)))]
+    for k in range(gap, len(seq)):
+        grays.append(to_gray(seq.frame(k), "frame"))
+        g0, g1 = grays.pop(0), grays[-1]
+        pose0, pose1 = seq.poses[k - gap], seq.poses[k]
         if params.fb_check:
-            flow, backward = main.flow(g0, gray_next, pose0, pose1, backward=True)
+            flow, backward = main.flow(g0, g1, pose0, pose1, backward=True)
         else:
-            flow, backward = main.flow(g0, gray_next, pose0, pose1), None
+            flow, backward = main.flow(g0, g1, pose0, pose1), None
         det = main.detect_flow(flow, pose0, pose1, backward=backward)
-        ids, gt = seq.ids(k - 1), seq.mask(k - 1)
-        frame_objects = objects[objects.frame == k - 1]
+        ids, gt = seq.ids(k - gap), seq.mask(k - gap)
+        frame_objects = objects[objects.frame == k - gap]
         rows = object_metrics(det.mask, ids, frame_objects, range_limit=range_limit,
                               min_coverage=min_coverage)
         weighted = {n: w * det.maps[n] for n, w in zip(CONSTRAINT_NAMES, params.weights,
                                                        strict=True)}
         for r in rows:
             pix = ids == r["id"]
-            r.update({"sequence": seq.name, "frame": k - 1})
+            r.update({"sequence": seq.name, "frame": k - gap})
             r.update({f"c_{n}": float(weighted[n][pix].mean()) for n in CONSTRAINT_NAMES})
             score = r["pixels"]  # the largest view of each category, detected or not
             if score > examples.get(r["category"], (0,))[0]:
-                examples[r["category"]] = (score, str(seq.path), k)
+                examples[r["category"]] = (score, str(seq.path), k, gap)
         obj_rows += rows
         fm = frame_metrics(det.mask, gt, valid)
         fp_pix = (det.mask > 0) & (gt == 0) & valid
-        fm.update({"sequence": seq.name, "frame": k - 1, "ego_static": det.static_camera})
+        fm.update({"sequence": seq.name, "frame": k - gap, "ego_static": det.static_camera})
         fm.update({f"fp_{n}": float(weighted[n][fp_pix].sum()) for n in CONSTRAINT_NAMES})
         frame_rows.append(fm)
         m_above, s_above = likelihood_histograms(det.likelihood, gt, valid)

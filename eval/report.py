@@ -161,11 +161,11 @@ def fig6_grid(results: list[SequenceResult], params: Params) -> Figure | None:
     for cat in CATEGORY_ORDER:
         if cat not in best:
             continue
-        _, path, k = best[cat]
+        _, path, k, gap = best[cat]
         seq = Sequence(path)
         det = MotionDetector(seq.camera, params=params, roi=seq.roi()).detect(
-            seq.frame(k - 1), seq.frame(k), seq.poses[k - 1], seq.poses[k])
-        cols.append((seq.frame(k - 1), det, f"{cat} ({seq.name} #{k - 1})"))
+            seq.frame(k - gap), seq.frame(k), seq.poses[k - gap], seq.poses[k])
+        cols.append((seq.frame(k - gap), det, f"{cat} ({seq.name} #{k - gap})"))
     return draw.fig6(cols, saturation=params.saturation) if cols else None
 
 

@@ -9,7 +9,7 @@
 from __future__ import annotations
 
 import json
-from collections import OrderedDict
+from collections import OrderedDict, deque
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -131,10 +131,10 @@ class MotionDetector:
         self._pixel_valid = pixel_valid
         self._flow = FlowEstimator(self.params)
         self._prior = (EgoFlowPrior(camera, distance=self.params.prior_distance)
-                       if self.params.flow_prior == "ego" else None)
+                       if self.params.flow_prior != "none" else None)
         self._pixel_coords = None
-        self._prev: NDArray[np.uint8] | None = None
-        self._prev_pose: NDArray[np.float64] | None = None
+        self._history: deque[tuple[NDArray[np.uint8], NDArray[np.float64]]] = deque(
+            maxlen=self.params.frame_gap)
 
     def detect(self, prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray,
                pose1: NDArray) -> Detection:
@@ -153,21 +153,23 @@ class MotionDetector:
         return self._detect_gray(g0, g1, t0, t1)
 
     def apply(self, frame: NDArray[np.uint8], pose: NDArray) -> Detection | None:
-        """Streaming: detect between the previous call's frame and this one.
+        """Streaming: detect between the frame ``params.frame_gap`` calls ago and this one.
 
-        Returns None on the first call. Only the last frame and pose are kept.
+        Returns None until that many frames have been seen. Only the last ``frame_gap`` frames
+        and poses are kept.
         """
         gray = to_gray(frame, "frame", size=self.size)
         t = check_pose(pose, "pose")
-        prev, prev_pose = self._prev, self._prev_pose
-        self._prev, self._prev_pose = gray, t
+        full = len(self._history) == self._history.maxlen
+        prev, prev_pose = self._history[0] if full else (None, None)
+        self._history.append((gray, t))
         if prev is None:
             return None
         return self._detect_gray(prev, gray, prev_pose, t)
 
     def reset(self) -> None:
-        """Forget the stream's previous frame."""
-        self._prev = self._prev_pose = None
+        """Forget the stream's previous frames."""
+        self._history.clear()
 
     def detect_flow(self, flow: NDArray, pose0: NDArray, pose1: NDArray, *,
                     backward: NDArray | None = None) -> Detection:
@@ -190,14 +192,34 @@ class MotionDetector:
 
     def flow(self, prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray,
              pose1: NDArray, *, backward: bool = False):
-        """The dense flow ``detect`` uses, from gray frames and checked poses, started from the
-        ego prior if set; with ``backward=True`` also the flow from ``curr`` to ``prev``."""
-        initial = None if self._prior is None else self._prior(pose0, pose1, self.road)
-        forward = self._flow(prev, curr, initial)
+        """The dense flow ``detect`` uses, from gray frames and checked poses, with the ego prior
+        as set in ``params.flow_prior``; with ``backward=True`` also the flow from ``curr`` to
+        ``prev``."""
+        forward = self._one_flow(prev, curr, pose0, pose1)
         if not backward:
             return forward
-        back_initial = None if self._prior is None else self._prior(pose1, pose0, self.road)
-        return forward, self._flow(curr, prev, back_initial)
+        return forward, self._one_flow(curr, prev, pose1, pose0)
+
+    def _one_flow(self, a, b, pose_a, pose_b) -> NDArray[np.float32]:
+        mode = self.params.flow_prior
+        if mode == "none":
+            return self._flow(a, b)
+        prior = self._prior(pose_a, pose_b, self.road)
+        if mode == "ego":
+            return self._flow(a, b, prior)
+        xx, yy = self._coords()
+        warped = cv2.remap(b, xx + prior[..., 0], yy + prior[..., 1], cv2.INTER_LINEAR,
+                           borderMode=cv2.BORDER_REPLICATE)
+        residual = self._flow(a, warped)
+        # a(u) ~ warped(u + r) = b(u + r + prior(u + r)) ~ b(u + prior(u) + r)
+        return prior + residual
+
+    def _coords(self) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+        if self._pixel_coords is None:
+            w, h = self.size
+            xx, yy = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
+            self._pixel_coords = (xx, yy)
+        return self._pixel_coords
 
     def _detect_gray(self, g0, g1, t0, t1) -> Detection:
         if self.params.fb_check:
@@ -207,11 +229,7 @@ class MotionDetector:
 
     def _consistent_cells(self, flow, backward) -> NDArray[np.bool_]:
         """Cells whose mean forward-backward error is within tolerance."""
-        h, w = flow.shape[:2]
-        if self._pixel_coords is None:
-            xx, yy = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
-            self._pixel_coords = (xx, yy)
-        xx, yy = self._pixel_coords
+        xx, yy = self._coords()
         back_at = cv2.remap(backward, xx + flow[..., 0], yy + flow[..., 1], cv2.INTER_LINEAR,
                             borderMode=cv2.BORDER_REPLICATE)
         error = np.linalg.norm(flow + back_at, axis=-1)

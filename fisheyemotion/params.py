@@ -12,7 +12,7 @@ from typing import Any
 FLOW_METHODS = ("farneback", "dis")
 DIS_PRESETS = ("ultrafast", "fast", "medium")
 LAMBDA_P_MODES = ("constant", "adaptive")
-FLOW_PRIORS = ("none", "ego")
+FLOW_PRIORS = ("none", "ego", "warp")
 
 #: Farneback settings; OpenCV's sample values, the paper does not state its own.
 FARNEBACK_DEFAULTS = {"pyr_scale": 0.5, "levels": 3, "winsize": 15, "iterations": 3,
@@ -52,11 +52,18 @@ class Params:
         ``cv2.calcOpticalFlowFarneback`` settings (``pyr_scale``, ``levels``, ``winsize``,
         ``iterations``, ``poly_n``, ``poly_sigma``).
     dis_preset : {'ultrafast', 'fast', 'medium'}
-    flow_prior : {'none', 'ego'}
-        ``ego``: start the flow method from the flow a static scene would have (road plane below
-        the horizon, ``prior_distance`` above it), predicted from the poses and the camera.
+    flow_prior : {'none', 'ego', 'warp'}
+        The flow a static scene would have (road plane below the horizon, ``prior_distance``
+        above it), predicted from the poses and the camera. ``ego``: the flow method's initial
+        estimate. ``warp``: the current frame is warped back by it and the flow method only
+        measures the residual (removing large displacements *and* the fisheye/perspective
+        deformation of the road); flow = prior + residual.
     prior_distance : float
         Metres, for the ego prior's rays that do not meet the road closer than that.
+    frame_gap : int
+        Streaming (``MotionDetector.apply``, eval): compare each frame with the one ``frame_gap``
+        frames earlier (paper: 1, consecutive frames). Larger gaps multiply both the ego
+        baseline and an object's own motion while the flow error stays about the same.
     fb_check : bool
         Forward-backward consistency: also compute the flow from ``curr`` to ``prev``; cells whose
         mean round-trip error exceeds ``fb_tolerance + fb_relative * |flow|`` pixels are not
@@ -88,6 +95,7 @@ class Params:
     dis_preset: str = "medium"
     flow_prior: str = "none"
     prior_distance: float = 15.0
+    frame_gap: int = 1
     fb_check: bool = False
     fb_tolerance: float = 1.0
     fb_relative: float = 0.05
@@ -115,10 +123,10 @@ class Params:
                               ("dis_preset", DIS_PRESETS), ("flow_prior", FLOW_PRIORS)):
             if getattr(self, name) not in options:
                 raise ValueError(f"{name}: expected one of {', '.join(options)}, got {getattr(self, name)!r}")
-        for name in ("grid", "min_area"):
+        for name, low in (("grid", 1), ("min_area", 0), ("frame_gap", 1)):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < (1 if name == "grid" else 0):
-                raise ValueError(f"{name}: expected an integer >= {1 if name == 'grid' else 0}, got {v!r}")
+            if isinstance(v, bool) or not isinstance(v, int) or v < low:
+                raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
         for name in ("depth_both_views", "fb_check"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}: expected a bool, got {getattr(self, name)!r}")

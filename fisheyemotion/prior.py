@@ -52,10 +52,7 @@ class EgoFlowPrior:
         pixels, ok = self.camera.project(seen)
         flow = np.where((ok & self._valid)[..., None], pixels - self._pixels, 0.0).astype(np.float32)
         h, w = self.camera.height, self.camera.width
-        # Coarse samples sit at pixels 0, step, 2 step...: map them onto the full grid exactly.
-        big = cv2.resize(flow, (flow.shape[1] * self.step, flow.shape[0] * self.step),
-                         interpolation=cv2.INTER_LINEAR)
-        shift = (self.step - 1) / 2
-        m = np.float32([[1, 0, shift], [0, 1, shift]])
-        big = cv2.warpAffine(big, m, (big.shape[1], big.shape[0]), borderMode=cv2.BORDER_REPLICATE)
-        return np.ascontiguousarray(big[:h, :w])
+        # Coarse sample j sits at pixel step * j: look up fractional sample x / step.
+        xs = (np.arange(w, dtype=np.float32) / self.step)[None, :].repeat(h, 0)
+        ys = (np.arange(h, dtype=np.float32) / self.step)[:, None].repeat(w, 1)
+        return cv2.remap(flow, xs, ys, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)

@@ -62,12 +62,14 @@ class FrameTruth:
 @dataclass(frozen=True, eq=False)
 class Hits:
     """Nearest intersection per ray: ``obj`` (-1 sky, 0 road, i + 1 for ``boxes[i]``), distance
-    ``t``, the hit point in the object's frame (world for road, direction for sky) and the face."""
+    ``t``, the hit point in the object's frame (world for road, direction for sky), the face, and
+    each box's world rotation at the time of the cast."""
 
     obj: NDArray[np.int64]
     t: NDArray[np.float64]
     local: NDArray[np.float64]
     face: NDArray[np.int64]
+    rotations: tuple[NDArray[np.float64], ...] = ()
 
 
 class Renderer:
@@ -99,6 +101,9 @@ class Renderer:
         ou, ov = np.meshgrid(offsets, offsets)
         sub = pixel_grid(w, h)[:, :, None, :] + np.stack([ou.ravel(), ov.ravel()], -1)
         self._sub_rays, self._sub_valid = camera.unproject(sub)  # (H, W, ss*ss, 3)
+        # Angle between neighbouring samples, at the image centre (1 / focal length).
+        fx, fy, _, _ = camera._affine()
+        self._sample_angle = 1.0 / (max(fx, fy) * supersample)
         self._prev_hits: tuple[int, Hits] | None = None
 
     # ---- geometry -----------------------------------------------------------------------
@@ -126,7 +131,8 @@ class Renderer:
             t_road = np.where(down, -origin[2] / dirs[:, 2], np.inf)
         hit = t_road < best_t
         best_t[hit], obj[hit] = t_road[hit], ROAD
-        for i, (box, pose) in enumerate(self._boxes_at(time)):
+        boxes = self._boxes_at(time)
+        for i, (box, pose) in enumerate(boxes):
             rot, centre = pose[:3, :3], pose[:3, 3]
             half = np.array(box.size) / 2
             # Bounding-sphere cull before the slab test.
@@ -158,9 +164,13 @@ class Renderer:
             face[sel] = axis * 2 + (1 - sign)
         road = obj == ROAD
         local[road] = origin + best_t[road, None] * dirs[road]
-        return Hits(obj, best_t, local, face)
+        return Hits(obj, best_t, local, face, tuple(p[:3, :3] for _, p in boxes))
 
     # ---- shading ------------------------------------------------------------------------
+    def _footprint(self, hits: Hits, cos_incidence: NDArray) -> NDArray[np.float64]:
+        """Metres of surface one sample covers: distance x sample angle / cos(incidence)."""
+        return hits.t * self._sample_angle / np.maximum(np.abs(cos_incidence), 0.05)
+
     def _shade(self, hits: Hits, dirs: NDArray) -> NDArray[np.float32]:
         colour = np.empty((hits.obj.size, 3), dtype=np.float32)
         sky = hits.obj == SKY
@@ -169,27 +179,32 @@ class Renderer:
                        + np.array([200, 140, 90], np.float32) * el)
         road = hits.obj == ROAD
         if road.any():
-            colour[road] = self._road_colour(hits.local[road])
+            colour[road] = self._road_colour(hits.local[road],
+                                             self._footprint(hits, dirs[:, 2])[road])
         for i, box in enumerate(self._all_boxes):
             sel = hits.obj == i + 1
             if not sel.any():
                 continue
             p, f = hits.local[sel], hits.face[sel]
             axis = f // 2
+            rot = hits.rotations[i]
+            normal_cos = (dirs[sel] @ rot)[np.arange(axis.size), axis]
+            footprint = self._footprint(hits, np.ones(hits.t.size))[sel] / np.maximum(
+                np.abs(normal_cos), 0.05)
             # Face coordinates: horizontal along the face, vertical up (top: x, y).
             u = np.where(axis == 0, p[:, 1], p[:, 0]) + 7.3 * i
             v = np.where(axis == 2, p[:, 1], p[:, 2])
-            colour[sel] = sample(box.texture, u, v, _BOX_TEXEL) * _FACE_SHADE[f][:, None]
+            colour[sel] = sample(box.texture, u, v, _BOX_TEXEL, footprint) * _FACE_SHADE[f][:, None]
         return colour
 
-    def _road_colour(self, points: NDArray) -> NDArray[np.float32]:
+    def _road_colour(self, points: NDArray, footprint: NDArray) -> NDArray[np.float32]:
         x, y = points[:, 0], points[:, 1]
         spec = self.scenario.road
         half = spec.lanes * spec.lane_width / 2
-        colour = sample("gravel", x, y, _ROAD_TEXEL)
+        colour = sample("gravel", x, y, _ROAD_TEXEL, footprint)
         verge = np.abs(y) > half + _MARK_WIDTH
         if verge.any():
-            colour[verge] = sample("grass", x[verge], y[verge], _ROAD_TEXEL * 2)
+            colour[verge] = sample("grass", x[verge], y[verge], _ROAD_TEXEL * 2, footprint[verge])
         lines = [(-half, False), (half, False)] + [
             (-half + k * spec.lane_width, True) for k in range(1, spec.lanes)]
         for offset, dashed in lines:
