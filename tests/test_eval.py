@@ -1,0 +1,171 @@
+"""Metrics on hand-made masks with known answers, and end-to-end runs on rendered sequences."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import fisheyemotion as fm
+from fisheyemotion import synth
+from fisheyemotion.eval import (combine, evaluate, evaluate_sequence, frame_metrics,
+                                object_metrics, table2, write_report)
+from fisheyemotion.eval.cli import run_eval
+
+from .cameras import TUMVI_KB
+
+
+def _objects(rows):
+    return pd.DataFrame(rows, columns=["frame", "id", "kind", "category", "moving", "distance",
+                                       "visible_pixels"])
+
+
+def _scene():
+    ids = np.zeros((20, 30), np.uint16)
+    ids[2:6, 2:6] = 1  # 16 px, moving, near
+    ids[10:14, 10:20] = 2  # 40 px, moving, near
+    ids[15:19, 25:29] = 3  # 16 px, moving, far (beyond the range limit)
+    ids[0:2, 20:30] = 7  # static building
+    objects = _objects([
+        (0, 1, "pedestrian", "crossing", True, 5.0, 16),
+        (0, 2, "car", "overtaking", True, 7.9, 40),
+        (0, 3, "car", "approaching", True, 12.0, 16),
+        (0, 7, "building", "static", False, 15.0, 20),
+        (0, 9, "car", "preceding", True, 4.0, 0),  # off-image this frame
+    ])
+    return ids, objects
+
+
+def test_detected_missed_coverage_and_range_filter():
+    ids, objects = _scene()
+    pred = np.zeros_like(ids, np.uint8)
+    pred[2:4, 2:6] = 255  # half of object 1
+    pred[18, 28] = 255  # one pixel of the far object 3
+    rows = {r["id"]: r for r in object_metrics(pred, ids, objects)}
+    assert set(rows) == {1, 2}  # 3 is beyond 8 m, 9 is not visible, 7 is static
+    assert rows[1]["detected"] and rows[1]["coverage"] == 0.5
+    assert not rows[2]["detected"] and rows[2]["coverage"] == 0.0
+    strict = {r["id"]: r for r in object_metrics(pred, ids, objects, min_coverage=0.6)}
+    assert not strict[1]["detected"]
+    far = {r["id"]: r for r in object_metrics(pred, ids, objects, range_limit=20)}
+    assert far[3]["detected"] and far[3]["coverage"] == 1 / 16
+
+
+def test_false_positive_frame_and_pixel_scores():
+    ids, _ = _scene()
+    moving = np.isin(ids, [1, 2, 3]).astype(np.uint8) * 255
+    valid = np.ones(ids.shape, bool)
+    pred = np.zeros_like(moving)
+    pred[2:6, 2:8] = 255  # object 1 plus 8 static pixels, touching it: not a FP region
+    m = frame_metrics(pred, moving, valid)
+    assert m["regions"] == 1 and not m["fp_frame"]
+    assert m["tp_px"] == 16 and m["fp_px"] == 8 and m["fn_px"] == 56
+    assert m["iou"] == pytest.approx(16 / 80) and m["precision"] == pytest.approx(16 / 24)
+    assert m["static_flagged"] == pytest.approx(8 / (600 - 72))
+    pred[8, 0] = 255  # a region touching no moving object
+    assert frame_metrics(pred, moving, valid)["fp_frame"]
+
+
+def test_edge_cases_empty_and_invalid():
+    ids, objects = _scene()
+    empty = np.zeros_like(ids, np.uint8)
+    rows = object_metrics(empty, ids, objects)
+    assert all(not r["detected"] for r in rows)
+    m = frame_metrics(empty, np.zeros_like(empty), np.ones(ids.shape, bool))
+    assert m["regions"] == 0 and not m["fp_frame"] and np.isnan(m["iou"])
+    none_valid = frame_metrics(np.full_like(empty, 255), empty, np.zeros(ids.shape, bool))
+    assert none_valid["regions"] == 0 and none_valid["static_flagged"] == 0
+    assert object_metrics(empty, ids, objects.iloc[0:0]) == []
+    t = table2(pd.DataFrame(columns=["category", "detected", "coverage"]),
+               pd.DataFrame({"fp_frame": [True, False], "static_flagged": [0.1, 0.0]}))
+    assert np.isnan(t.set_index("category").loc["crossing", "detection_rate"])
+    assert t.set_index("category").loc["false positives", "detection_rate"] == 0.5
+
+
+def test_table2_definitions():
+    objs = pd.DataFrame({"category": ["crossing"] * 4 + ["static"],
+                         "detected": [True, True, False, True, False],
+                         "coverage": [0.5, 0.7, 0.0, 0.3, 0.0]})
+    frames = pd.DataFrame({"fp_frame": [False, True, False, False],
+                           "static_flagged": [0.0, 0.04, 0.0, 0.0]})
+    t = table2(objs, frames).set_index("category")
+    assert t.loc["crossing", "frames"] == 4
+    assert t.loc["crossing", "detection_rate"] == 0.75
+    assert t.loc["crossing", "coverage_rate"] == pytest.approx(0.5)  # over detections only
+    assert t.loc["static", "detection_rate"] == 0.0
+    assert t.loc["false positives", "coverage_rate"] == pytest.approx(0.01)
+
+
+CAM = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 100.0, "fy": 100.0, "cx": 159.5, "cy": 119.5,
+                                "width": 320, "height": 240})
+FAST = fm.Params(flow="dis", dis_preset="fast", flow_prior="ego", fb_check=True, frame_gap=2,
+                 grid=4, min_area=48)
+
+
+@pytest.fixture(scope="module")
+def sequences(tmp_path_factory):
+    root = tmp_path_factory.mktemp("seqs")
+    crossing = synth.parse_scenario({
+        "name": "near_crossing", "frames": 8, "ego": {"speed_kmh": 10},
+        "camera": {"position": [2, 0, 0.9], "pitch_deg": 15},
+        "objects": [{"id": 1, "kind": "car", "category": "crossing", "start": [8, -4],
+                     "heading_deg": 90, "speed_kmh": 15}]})
+    world = synth.load_scenario("static_world")
+    return [synth.write_sequence(root / sc.name, CAM, sc, frames=8, flow=False, progress=False,
+                                 supersample=1) for sc in (crossing, world)]
+
+
+def test_end_to_end_report(sequences, tmp_path):
+    results, report = run_eval(sequences, FAST, ["dis", "farneback"], tmp_path / "report",
+                               workers=1, scheduler=None, progress=False)
+    assert report.exists() and (tmp_path / "report" / "report.md").exists()
+    for name in ("table2.csv", "objects.csv", "frames.csv", "ablation.csv", "pr.csv",
+                 "table2.png", "pr.png", "categories.png", "fig6.png"):
+        assert (tmp_path / "report" / name).exists(), name
+    html = report.read_text()
+    assert "data:image/png;base64," in html and "<img src=\"" not in html
+    wide = pd.read_csv(tmp_path / "report" / "table2.csv")
+    assert list(wide.category) == ["crossing", "overtaking", "preceding", "approaching",
+                                   "static", "false positives"]
+    crossing = wide.set_index("category").loc["crossing"]
+    assert crossing.dis_frames >= 4 and crossing.dis_detection > 0.5
+    assert wide.set_index("category").loc["false positives", "dis_frames"] == 12
+    abl = pd.read_csv(tmp_path / "report" / "ablation.csv")
+    assert {"epipolar only", "depth only", "height only", "antiparallel only"} <= set(abl.variant)
+
+
+def test_process_pool_equals_serial(sequences):
+    serial = evaluate(sequences, FAST, workers=1, progress=False, ablation=False)
+    pooled = evaluate(sequences, FAST, workers=2, progress=False, ablation=False)
+    for a, b in zip(serial, pooled, strict=True):
+        pd.testing.assert_frame_equal(a.objects, b.objects)
+        pd.testing.assert_frame_equal(a.frames, b.frames)
+
+
+def test_dask_local_cluster_equals_serial(sequences):
+    distributed = pytest.importorskip("dask.distributed")
+    serial = evaluate(sequences, FAST, workers=1, progress=False, ablation=False)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        remote = evaluate(sequences, FAST, scheduler=cluster.scheduler_address, progress=False,
+                          ablation=False)
+    for a, b in zip(serial, remote, strict=True):
+        pd.testing.assert_frame_equal(a.objects, b.objects)
+        pd.testing.assert_frame_equal(a.frames, b.frames)
+        np.testing.assert_array_equal(a.moving_above, b.moving_above)
+
+
+def test_missing_sequence_folder_is_a_value_error(tmp_path):
+    from fisheyemotion.eval.evaluate import sequence_paths
+
+    with pytest.raises(ValueError, match="no such sequence"):
+        sequence_paths([tmp_path / "nope"])
+    with pytest.raises(ValueError, match="frames"):
+        evaluate_sequence(tmp_path)
+
+
+def test_combine_adds_the_flow_column(sequences):
+    res = evaluate(sequences[:1], FAST, workers=1, progress=False, ablation=False)
+    tables = combine(res)
+    assert (tables["frames"].flow == "dis").all()
+    write_report(res, sequences[0].parent / "r", FAST)

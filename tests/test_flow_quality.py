@@ -1,0 +1,89 @@
+"""The additions beyond the paper: ego-motion flow prior, warping, forward-backward check, gap."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+import fisheyemotion as fm
+from fisheyemotion import synth
+from fisheyemotion.flow import grid_average, grid_centres, grid_upsample
+from fisheyemotion.prior import EgoFlowPrior
+
+from .cameras import TUMVI_KB
+
+CAM = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 100.0, "fy": 100.0, "cx": 159.5, "cy": 119.5,
+                                "width": 320, "height": 240})
+ROAD_ONLY = synth.parse_scenario({"name": "road", "frames": 4, "ego": {"speed_kmh": 20},
+                                  "camera": {"position": [2, 0, 0.9], "pitch_deg": 15}})
+
+
+@pytest.fixture(scope="module")
+def road_frames():
+    r = synth.Renderer(CAM, ROAD_ONLY)
+    return r, [r.render(k) for k in range(4)]
+
+
+def test_ego_prior_is_the_exact_flow_of_the_road(road_frames):
+    r, frames = road_frames
+    prior = EgoFlowPrior(CAM, step=4)(frames[0].pose, frames[1].pose, fm.Road())
+    road = (frames[0].ids == 0) & np.isfinite(frames[1].flow).all(axis=-1) & (r.roi() > 0)
+    below = np.zeros_like(road)
+    below[140:] = True  # well below the horizon, where the road is nearer than prior_distance
+    err = np.linalg.norm(prior - frames[1].flow, axis=-1)[road & below]
+    assert np.median(err) < 0.05 and np.percentile(err, 99) < 0.5
+
+
+@pytest.mark.parametrize("flow", ["farneback", "dis"])
+def test_warp_prior_recovers_large_road_displacements(road_frames, flow):
+    r, frames = road_frames
+    roi = r.roi()
+    g = [cv2.cvtColor(f.image, cv2.COLOR_BGR2GRAY) for f in frames]
+    errors = {}
+    for prior in ("none", "warp"):
+        det = fm.MotionDetector(CAM, params=fm.Params(flow=flow, flow_prior=prior), roi=roi)
+        est = det.flow(g[0], g[2], frames[0].pose, frames[2].pose)
+        exact = EgoFlowPrior(CAM, step=1)(frames[0].pose, frames[2].pose, fm.Road())
+        near = (frames[0].ids == 0) & (roi > 0)
+        near[:150] = False
+        errors[prior] = np.median(np.linalg.norm(est - exact, axis=-1)[near])
+    assert errors["warp"] < 0.5 * errors["none"]
+
+
+def test_forward_backward_check_invalidates_inconsistent_cells(road_frames):
+    r, frames = road_frames
+    flow = np.zeros((240, 320, 2), np.float32)
+    flow[..., 0], flow[..., 1] = 5.0, 2.0  # uniform: the exact backward flow is its negative
+    pose0, pose1 = frames[0].pose, frames[1].pose
+    plain = fm.MotionDetector(CAM, roi=r.roi()).detect_flow(flow, pose0, pose1)
+    det = fm.MotionDetector(CAM, params=fm.Params(fb_check=True), roi=r.roi())
+    consistent = det.detect_flow(flow, pose0, pose1, backward=-flow)
+    np.testing.assert_array_equal(consistent.grid.valid, plain.grid.valid)
+    off = -flow + np.float32([0.0, 1.2])  # 1.2 px round-trip error > 1 px + 5% of 5.4 px
+    broken = det.detect_flow(flow, pose0, pose1, backward=off)
+    assert plain.grid.valid.any() and not broken.grid.valid.any()
+    slightly = det.detect_flow(flow, pose0, pose1, backward=-flow + np.float32([0.0, 0.9]))
+    np.testing.assert_array_equal(slightly.grid.valid, plain.grid.valid)
+
+
+def test_frame_gap_streams_compare_with_the_frame_gap_calls_ago(road_frames):
+    _, frames = road_frames
+    params = fm.Params(flow="dis", dis_preset="fast", frame_gap=2)
+    det = fm.MotionDetector(CAM, params=params)
+    out = [det.apply(f.image, f.pose) for f in frames]
+    assert out[0] is None and out[1] is None and out[2] is not None
+    direct = fm.MotionDetector(CAM, params=params).detect(frames[1].image, frames[3].image,
+                                                          frames[1].pose, frames[3].pose)
+    np.testing.assert_array_equal(out[3].likelihood, direct.likelihood)
+
+
+def test_grid_helpers_average_and_upsample():
+    img = np.arange(7 * 11, dtype=np.float32).reshape(7, 11)
+    cells = grid_average(img, 3)
+    assert cells.shape == (2, 3)
+    assert cells[0, 0] == img[:3, :3].mean() and cells[1, 2] == img[3:6, 6:9].mean()
+    up = grid_upsample(cells, 3, 11, 7)
+    assert up.shape == (7, 11) and up[6, 10] == cells[1, 2] and up[0, 0] == cells[0, 0]
+    centres = grid_centres(11, 7, 3)
+    assert centres[0, 0].tolist() == [1.0, 1.0] and centres[1, 2].tolist() == [7.0, 4.0]
