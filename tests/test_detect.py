@@ -84,10 +84,11 @@ def test_ground_truth_flow_gives_a_clean_static_scene(pair):
 
 
 def test_streaming_apply_matches_detect_and_starts_with_none(pair):
-    det = fm.MotionDetector(CAM, params=fm.Params(flow="dis", dis_preset="fast"))
+    params = fm.Params(flow="dis", dis_preset="fast", frame_gap=1)
+    det = fm.MotionDetector(CAM, params=params)
     assert det.apply(pair[0].image, pair[0].pose) is None
     streamed = det.apply(pair[1].image, pair[1].pose)
-    direct = fm.MotionDetector(CAM, params=fm.Params(flow="dis", dis_preset="fast")).detect(
+    direct = fm.MotionDetector(CAM, params=params).detect(
         pair[0].image, pair[1].image, pair[0].pose, pair[1].pose)
     np.testing.assert_array_equal(streamed.mask, direct.mask)
 
@@ -112,7 +113,8 @@ def test_memory_stays_flat_over_a_long_stream():
     A detector keeping anything per frame (even a 64x48 float32 map, 12 kB) would grow by
     over 100 MB here."""
     cam = fm.calib.KannalaBrandt(fx=40, fy=40, cx=31.5, cy=23.5, width=64, height=48)
-    det = fm.MotionDetector(cam, params=fm.Params(flow="dis", dis_preset="ultrafast", grid=4))
+    det = fm.MotionDetector(cam, params=fm.Params(flow="dis", dis_preset="ultrafast", grid=4,
+                                                  frame_gap=1))
     rng = np.random.default_rng(0)
     frames = [rng.integers(0, 255, (48, 64), dtype=np.uint8) for _ in range(4)]
     pose = np.eye(4)
@@ -175,8 +177,12 @@ def test_detect_cli_on_a_sequence_folder(tmp_path, pair):
     seq = synth.write_sequence(tmp_path / "seq", CAM, PAIR, frames=3, progress=False)
     out = tmp_path / "out"
     assert main(["detect", str(seq), "--out", str(out), "--quiet"]) == 0
+    assert len(list((out / "annotated").glob("*.png"))) == 0  # 3 frames, default gap 3
+    (tmp_path / "p.yaml").write_text("frame_gap: 1\nflow: dis\n")
+    assert main(["detect", str(seq), "--out", str(out), "--quiet", "--params",
+                 str(tmp_path / "p.yaml")]) == 0
     assert len(list((out / "annotated").glob("*.png"))) == 2
-    with np.load(out / "likelihood" / "000001.npz") as z:
+    with np.load(out / "likelihood" / "000002.npz") as z:
         assert z["likelihood"].shape == (480, 640)
     import pandas as pd
 
@@ -193,9 +199,12 @@ def test_detect_cli_on_a_video_with_explicit_files(tmp_path, pair):
     fm.poses.write_tum(tmp_path / "poses.txt", [0, 1 / 15, 2 / 15], [f.pose for f in pair])
     fm.calib.save_opencv(CAM, tmp_path / "calib.yaml")
     out = tmp_path / "out"
+    (tmp_path / "p.json").write_text('{"frame_gap": 1}')
     code = main(["detect", str(video), "--calib", str(tmp_path / "calib.yaml"), "--poses",
-                 str(tmp_path / "poses.txt"), "--out", str(out), "--quiet"])
+                 str(tmp_path / "poses.txt"), "--out", str(out), "--quiet", "--params",
+                 str(tmp_path / "p.json")])
     assert code == 0 and (out / "annotated.mp4").stat().st_size > 0
+    assert len(list((out / "likelihood").glob("*.npz"))) == 2
 
 
 def test_detect_cli_errors_are_one_line_and_exit_2(tmp_path, capsys):
