@@ -59,6 +59,17 @@ class FrameTruth:
     pose: NDArray[np.float64]
 
 
+class _BodyOnly:
+    """A scene holding only the ego body, in the vehicle frame (for the one-off body cast)."""
+
+    def __init__(self, body: Box, pose: NDArray) -> None:
+        self.boxes = (body,)
+        self._pose = pose
+
+    def ego_body(self) -> None:
+        return None
+
+
 @dataclass(frozen=True, eq=False)
 class Hits:
     """Nearest intersection per ray: ``obj`` (-1 sky, 0 road, i + 1 for ``boxes[i]``), distance
@@ -105,9 +116,13 @@ class Renderer:
         fx, fy, _, _ = camera._affine()
         self._sample_angle = 1.0 / (max(fx, fy) * supersample)
         self._prev_hits: tuple[int, Hits] | None = None
+        self._body_sub = self._body_hits(self._sub_rays[self._sub_valid])
+        self._body_centre = self._body_hits(self._rays[self._valid])
 
     # ---- geometry -----------------------------------------------------------------------
     def _boxes_at(self, t: float) -> list[tuple[Box, np.ndarray]]:
+        if isinstance(self.scenario, _BodyOnly):
+            return [(self.scenario.boxes[0], self.scenario._pose)]
         out = [(b, b.world_from_box(t)) for b in self.scenario.boxes]
         body = self.scenario.ego_body()
         if body is not None:  # rigidly attached to the vehicle
@@ -119,57 +134,86 @@ class Renderer:
         body = self.scenario.ego_body()
         return list(self.scenario.boxes) + ([body] if body is not None else [])
 
-    def intersect(self, origin: NDArray, dirs: NDArray, time: float) -> Hits:
-        """Nearest hits of world rays ``dirs`` (N, 3) from ``origin`` at scenario time ``time``."""
+    def intersect(self, origin: NDArray, dirs: NDArray, time: float, *,
+                  body: tuple[NDArray, NDArray, NDArray] | None = None) -> Hits:
+        """Nearest hits of world rays ``dirs`` (N, 3) from ``origin`` at scenario time ``time``.
+
+        ``body``: precomputed ``(t, local, face)`` of the ego vehicle's body for these rays
+        (rigid with the camera, so the same in every frame); cast here when None.
+        """
         n = dirs.shape[0]
         best_t = np.full(n, np.inf)
         obj = np.full(n, SKY, dtype=np.int64)
         face = np.full(n, -1, dtype=np.int64)
         local = dirs.copy()
-        down = dirs[:, 2] < -1e-12
         with np.errstate(divide="ignore", invalid="ignore"):
-            t_road = np.where(down, -origin[2] / dirs[:, 2], np.inf)
+            t_road = np.where(dirs[:, 2] < -1e-12, -origin[2] / dirs[:, 2], np.inf)
         hit = t_road < best_t
         best_t[hit], obj[hit] = t_road[hit], ROAD
         boxes = self._boxes_at(time)
-        for i, (box, pose) in enumerate(boxes):
-            rot, centre = pose[:3, :3], pose[:3, 3]
-            half = np.array(box.size) / 2
-            # Bounding-sphere cull before the slab test.
-            oc = centre - origin
-            along = dirs @ oc
-            radius2 = half @ half
-            near = (along > -np.sqrt(radius2)) & (oc @ oc - along**2 < radius2)
-            idx = np.nonzero(near)[0]
+        n_scene = len(self.scenario.boxes)
+        cast = boxes if body is None else boxes[:n_scene]
+        if body is not None and len(boxes) > n_scene:
+            t_b, local_b, face_b = body
+            sel = np.flatnonzero(t_b < best_t)
+            best_t[sel], obj[sel] = t_b[sel], n_scene + 1
+            local[sel], face[sel] = local_b[sel], face_b[sel]
+        if cast:
+            # Cone cull of every box at once: rays within the angle its bounding sphere subtends.
+            centres = np.array([p[:3, 3] for _, p in cast]) - origin
+            dist = np.linalg.norm(centres, axis=1)
+            radius = np.array([0.5 * float(np.linalg.norm(b.size)) for b, _ in cast])
+            with np.errstate(invalid="ignore"):
+                cos_cone = np.where(dist > radius, np.sqrt(np.maximum(dist**2 - radius**2, 0)), -np.inf)
+            near = dirs @ centres.T > cos_cone  # d . oc > |oc| cos(alpha)
+        for i, (box, pose) in enumerate(cast):
+            idx = np.flatnonzero(near[:, i])
             if idx.size == 0:
                 continue
+            rot, centre = pose[:3, :3], pose[:3, 3]
+            half = np.array(box.size) / 2
             o_l = rot.T @ (origin - centre)
             d_l = dirs[idx] @ rot
             with np.errstate(divide="ignore", invalid="ignore"):
-                t1 = (-half - o_l) / d_l
-                t2 = (half - o_l) / d_l
+                inv = 1.0 / d_l
+                t1 = (-half - o_l) * inv
+                t2 = (half - o_l) * inv
             t_near = np.fmin(t1, t2)
             t_far = np.fmax(t1, t2)
-            t_in = np.nanmax(t_near, axis=1)
-            t_out = np.nanmin(t_far, axis=1)
+            t_in = np.fmax(np.fmax(t_near[:, 0], t_near[:, 1]), t_near[:, 2])
+            t_out = np.fmin(np.fmin(t_far[:, 0], t_far[:, 1]), t_far[:, 2])
             ok = (t_in <= t_out) & (t_in > 0) & (t_in < best_t[idx])
             sel = idx[ok]
             if sel.size == 0:
                 continue
-            axis = np.nanargmax(t_near[ok], axis=1)
-            p_l = o_l + t_in[ok, None] * d_l[ok]
+            t_hit = t_in[ok]
+            axis = np.argmax(np.where(np.isnan(t_near[ok]), -np.inf, t_near[ok]), axis=1)
+            p_l = o_l + t_hit[:, None] * d_l[ok]
             sign = (p_l[np.arange(sel.size), axis] > 0).astype(np.int64)
-            best_t[sel], obj[sel] = t_in[ok], i + 1
+            best_t[sel], obj[sel] = t_hit, i + 1
             local[sel] = p_l
             face[sel] = axis * 2 + (1 - sign)
-        road = obj == ROAD
+        road = np.flatnonzero(obj == ROAD)
         local[road] = origin + best_t[road, None] * dirs[road]
         return Hits(obj, best_t, local, face, tuple(p[:3, :3] for _, p in boxes))
 
+    def _body_hits(self, rays_cam: NDArray) -> tuple[NDArray, NDArray, NDArray] | None:
+        """The ego body's hits for camera-frame rays (the same in every frame)."""
+        body = self.scenario.ego_body()
+        if body is None:
+            return None
+        vehicle_from_cam = self.scenario.camera.vehicle_from_cam()
+        pose = body.world_from_box(0.0)  # in the vehicle frame
+        sub = Renderer.__new__(Renderer)
+        sub.scenario = _BodyOnly(body, pose)
+        hits = sub.intersect(vehicle_from_cam[:3, 3], rays_cam @ vehicle_from_cam[:3, :3].T, 0.0)
+        t = np.where(hits.obj == 1, hits.t, np.inf)
+        return t, hits.local, hits.face
+
     # ---- shading ------------------------------------------------------------------------
-    def _footprint(self, hits: Hits, cos_incidence: NDArray) -> NDArray[np.float64]:
+    def _footprint(self, t: NDArray, cos_incidence: NDArray) -> NDArray[np.float64]:
         """Metres of surface one sample covers: distance x sample angle / cos(incidence)."""
-        return hits.t * self._sample_angle / np.maximum(np.abs(cos_incidence), 0.05)
+        return t * self._sample_angle / np.maximum(np.abs(cos_incidence), 0.05)
 
     def _shade(self, hits: Hits, dirs: NDArray) -> NDArray[np.float32]:
         colour = np.empty((hits.obj.size, 3), dtype=np.float32)
@@ -180,17 +224,15 @@ class Renderer:
         road = hits.obj == ROAD
         if road.any():
             colour[road] = self._road_colour(hits.local[road],
-                                             self._footprint(hits, dirs[:, 2])[road])
+                                             self._footprint(hits.t[road], dirs[road, 2]))
         for i, box in enumerate(self._all_boxes):
-            sel = hits.obj == i + 1
-            if not sel.any():
+            sel = np.flatnonzero(hits.obj == i + 1)
+            if sel.size == 0:
                 continue
             p, f = hits.local[sel], hits.face[sel]
             axis = f // 2
-            rot = hits.rotations[i]
-            normal_cos = (dirs[sel] @ rot)[np.arange(axis.size), axis]
-            footprint = self._footprint(hits, np.ones(hits.t.size))[sel] / np.maximum(
-                np.abs(normal_cos), 0.05)
+            normal_cos = (dirs[sel] @ hits.rotations[i])[np.arange(axis.size), axis]
+            footprint = self._footprint(hits.t[sel], normal_cos)
             # Face coordinates: horizontal along the face, vertical up (top: x, y).
             u = np.where(axis == 0, p[:, 1], p[:, 0]) + 7.3 * i
             v = np.where(axis == 2, p[:, 1], p[:, 2])
@@ -221,7 +263,7 @@ class Renderer:
             return self._prev_hits[1]
         pose = self.scenario.world_from_cam(index)
         dirs = self._rays[self._valid] @ pose[:3, :3].T
-        return self.intersect(pose[:3, 3], dirs, self.scenario.time(index))
+        return self.intersect(pose[:3, 3], dirs, self.scenario.time(index), body=self._body_centre)
 
     def roi(self) -> NDArray[np.uint8]:
         """255 where the camera sees the scene, 0 where it sees its own vehicle or nothing."""
@@ -241,7 +283,8 @@ class Renderer:
         valid_sub = self._sub_valid
         dirs = self._sub_rays[valid_sub] @ pose[:3, :3].T
         colour = np.zeros(valid_sub.shape + (3,), dtype=np.float32)
-        colour[valid_sub] = self._shade(self.intersect(pose[:3, 3], dirs, time), dirs)
+        colour[valid_sub] = self._shade(
+            self.intersect(pose[:3, 3], dirs, time, body=self._body_sub), dirs)
         image = colour.mean(axis=2)
         if self.blur_sigma > 0:
             image = cv2.GaussianBlur(image, (0, 0), self.blur_sigma)
