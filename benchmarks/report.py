@@ -1,7 +1,7 @@
-"""Turn a pytest-benchmark JSON file into the markdown table of docs/performance.md.
+"""Turn a pytest-benchmark JSON file into the markdown tables of docs/performance.md.
 
 Usage: python benchmarks/report.py .benchmarks/latest.json
-Each row's ratio is against the peer named in PEERS, measured in the same run.
+Every ratio is against a peer measured in the same run (PEERS).
 """
 
 from __future__ import annotations
@@ -12,24 +12,47 @@ import sys
 
 import pandas as pd
 
-PEERS = {"unproject-640x480": "test_cv2_fisheye_undistortPoints"}
+#: group -> the benchmark (by name prefix) every other row of the group is compared with.
+PEERS = {
+    "unproject-640x480": "test_cv2_fisheye_undistortPoints",
+    "engine-12k": "test_naive_loop_12k",
+    "engine-307k": "test_naive_loop_307k",
+    "render-640x480": "test_render_peer_farneback",
+}
+
+
+def _peer(group: str) -> str | None:
+    if group.startswith("detect-"):
+        return "test_detect_stage[flow_alone"
+    return PEERS.get(group)
 
 
 def main(path: str) -> None:
-    doc = json.load(open(path))
+    with open(path) as fh:
+        doc = json.load(fh)
     rows = []
     for b in doc["benchmarks"]:
-        rows.append({"group": b["group"], "name": b["name"], "median_ms": b["stats"]["median"] * 1e3,
-                     "extra": json.dumps(b.get("extra_info", {}))})
+        extra = b.get("extra_info", {})
+        med = b["stats"]["median"]
+        row = {"group": b["group"], "name": b["name"], "median_ms": med * 1e3}
+        if "rays" in extra:
+            row["Mrays_per_s"] = extra["rays"] / med / 1e6
+        if "frames" in extra:
+            row["ms_per_frame"] = med * 1e3 / extra["frames"]
+        row["extra"] = json.dumps({k: v for k, v in extra.items() if k not in ("rays", "frames")})
+        rows.append(row)
     df = pd.DataFrame(rows)
-    for group, peer in PEERS.items():
+    df["x_peer_time"] = float("nan")
+    for group in df.group.unique():
+        peer = _peer(group)
         sel = df.group == group
-        ref = df[sel & (df.name == peer)].median_ms
+        ref = df[sel & df.name.str.startswith(peer)].median_ms if peer else []
         if len(ref):
-            df.loc[sel, "x_vs_peer"] = df[sel].median_ms / ref.iloc[0]
-    print(f"Machine: {doc['machine_info'].get('cpu', {}).get('brand_raw', platform.processor())}, "
+            df.loc[sel, "x_peer_time"] = df[sel].median_ms / ref.iloc[0]
+    cpu = doc["machine_info"].get("cpu", {}).get("brand_raw", platform.processor())
+    print(f"Machine: {cpu}, {doc['machine_info'].get('cpu', {}).get('count', '?')} cores, "
           f"Python {doc['machine_info']['python_version']}, {doc['datetime']}\n")
-    print(df.to_markdown(index=False, floatfmt=".3g"))
+    print(df.sort_values(["group", "name"]).to_markdown(index=False, floatfmt=".3g"))
 
 
 if __name__ == "__main__":

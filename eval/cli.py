@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import os
 import shlex
 import sys
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import pandas as pd
+from tqdm import tqdm
 
 from fisheyemotion import calib, synth
 from fisheyemotion.cli import REPO_DATA, CliError, calibration_table
@@ -20,7 +23,11 @@ DEMO_CAMERA = "front_kb_640x480.yaml"
 
 
 def _params(args: argparse.Namespace) -> Params:
-    return Params.load(args.params) if getattr(args, "params", None) else Params()
+    """``--params FILE``, or ``--params paper`` for the paper's pipeline exactly."""
+    value = getattr(args, "params", None)
+    if value == "paper":
+        return Params.paper()
+    return Params.load(value) if value else Params()
 
 
 def _flows(text: str) -> list[str]:
@@ -82,13 +89,11 @@ def cmd_demo(args: argparse.Namespace) -> int:
     out = Path(args.out)
     camera = calib.load(data / "calib" / DEMO_CAMERA)
     names = args.scenarios.split(",") if args.scenarios else synth.list_scenarios()
-    seqs = []
-    for name in names:
-        sc = synth.load_scenario(data / "scenarios" / f"{name}.yaml")
-        seq_dir = out / "sequences" / name
-        synth.write_sequence(seq_dir, camera, sc, frames=args.frames, flow=False,
-                             progress=not args.quiet)
-        seqs.append(seq_dir)
+    jobs = [(camera, data / "scenarios" / f"{name}.yaml", out / "sequences" / name, args.frames)
+            for name in names]
+    with ProcessPoolExecutor(max_workers=args.workers or os.cpu_count() or 1) as pool:
+        seqs = list(tqdm(pool.map(_render, jobs), total=len(jobs), desc="synth",
+                         disable=args.quiet, leave=False))
     print(f"Rendered {len(seqs)} scenarios x {args.frames} frames with {DEMO_CAMERA} into "
           f"{out / 'sequences'}")
     results, report = run_eval(
@@ -100,12 +105,18 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _render(job) -> Path:
+    camera, spec, out, frames = job
+    return synth.write_sequence(out, camera, synth.load_scenario(spec), frames=frames, flow=False,
+                                progress=False)
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this package's commands to the ``fisheyemotion`` parser."""
     p = sub.add_parser("eval", help="evaluate detection on sequence folders and write a report")
     p.add_argument("seq_dirs", nargs="+", metavar="SEQ_DIR",
                    help="sequence folders, or folders holding them")
-    p.add_argument("--params", help="YAML/JSON file of Params")
+    p.add_argument("--params", help="YAML/JSON file of Params, or 'paper' for the paper's pipeline")
     p.add_argument("--flow", default="farneback", help="comma-separated: farneback,dis")
     p.add_argument("--out", required=True, help="report folder")
     p.add_argument("--workers", type=int, help="local processes (default: CPU count)")

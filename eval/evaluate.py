@@ -77,7 +77,7 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
             flow, backward = main.flow(g0, g1, pose0, pose1, backward=True)
         else:
             flow, backward = main.flow(g0, g1, pose0, pose1), None
-        det = main.detect_flow(flow, pose0, pose1, backward=backward)
+        det = main.detect_flow(flow, pose0, pose1, backward=backward, prev=g0, stream=True)
         ids, gt = seq.ids(k - gap), seq.mask(k - gap)
         frame_objects = objects[objects.frame == k - gap]
         rows = object_metrics(det.mask, ids, frame_objects, range_limit=range_limit,
@@ -103,7 +103,7 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
         n_moving += int(((gt > 0) & valid).sum())
         n_static += int(((gt == 0) & valid).sum())
         for name, detector in variants.items():
-            d = detector.detect_flow(flow, pose0, pose1, backward=backward)
+            d = detector.detect_flow(flow, pose0, pose1, backward=backward, prev=g0, stream=True)
             for r in object_metrics(d.mask, ids, frame_objects, range_limit=range_limit,
                                     min_coverage=min_coverage):
                 abl_rows.append({"variant": name, "kind": "object", **r})

@@ -133,6 +133,7 @@ class MotionDetector:
         self._prior = (EgoFlowPrior(camera, distance=self.params.prior_distance)
                        if self.params.flow_prior != "none" else None)
         self._pixel_coords = None
+        self._temporal: tuple[NDArray, NDArray] | None = None
         self._history: deque[tuple[NDArray[np.uint8], NDArray[np.float64]]] = deque(
             maxlen=self.params.frame_gap)
 
@@ -165,18 +166,22 @@ class MotionDetector:
         self._history.append((gray, t))
         if prev is None:
             return None
-        return self._detect_gray(prev, gray, prev_pose, t)
+        return self._detect_gray(prev, gray, prev_pose, t, stream=True)
 
     def reset(self) -> None:
-        """Forget the stream's previous frames."""
+        """Forget the stream's previous frames and its temporal state."""
         self._history.clear()
+        self._temporal = None
 
     def detect_flow(self, flow: NDArray, pose0: NDArray, pose1: NDArray, *,
-                    backward: NDArray | None = None) -> Detection:
+                    backward: NDArray | None = None, prev: NDArray | None = None,
+                    stream: bool = False) -> Detection:
         """Detect from a dense flow ``(H, W, 2)`` computed elsewhere (``u' = u + flow``).
 
         ``backward`` (the flow from the current to the previous frame) enables the
-        forward-backward check when ``params.fb_check`` is set.
+        forward-backward check when ``params.fb_check`` is set; ``prev`` (the previous frame)
+        enables the texture check when ``params.min_texture > 0``; ``stream=True`` treats the
+        call as the next frame of a stream (temporal filtering, as :meth:`apply`).
         """
         shape = (self.size[1], self.size[0], 2)
         arrays = {"flow": flow, "backward": backward}
@@ -187,8 +192,10 @@ class MotionDetector:
             if a.shape != shape or a.dtype.kind != "f":
                 raise ValueError(f"{name}: expected a float array of shape {shape}, got {a.dtype} {a.shape}")
         t0, t1 = check_pose(pose0, "pose0"), check_pose(pose1, "pose1")
+        gray = None if prev is None else to_gray(prev, "prev", size=self.size)
         return self._from_flow(np.asarray(flow, np.float32), t0, t1,
-                               None if backward is None else np.asarray(backward, np.float32))
+                               None if backward is None else np.asarray(backward, np.float32),
+                               gray, stream=stream)
 
     def flow(self, prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray,
              pose1: NDArray, *, backward: bool = False):
@@ -221,11 +228,17 @@ class MotionDetector:
             self._pixel_coords = (xx, yy)
         return self._pixel_coords
 
-    def _detect_gray(self, g0, g1, t0, t1) -> Detection:
+    def _detect_gray(self, g0, g1, t0, t1, *, stream: bool = False) -> Detection:
         if self.params.fb_check:
             forward, backward = self.flow(g0, g1, t0, t1, backward=True)
-            return self._from_flow(forward, t0, t1, backward)
-        return self._from_flow(self.flow(g0, g1, t0, t1), t0, t1)
+            return self._from_flow(forward, t0, t1, backward, g0, stream=stream)
+        return self._from_flow(self.flow(g0, g1, t0, t1), t0, t1, None, g0, stream=stream)
+
+    def _textured_cells(self, gray: NDArray[np.uint8]) -> NDArray[np.bool_]:
+        """Cells whose mean Sobel gradient magnitude reaches ``params.min_texture``."""
+        gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)
+        gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
+        return grid_average(cv2.magnitude(gx, gy), self.params.grid) >= self.params.min_texture
 
     def _consistent_cells(self, flow, backward) -> NDArray[np.bool_]:
         """Cells whose mean forward-backward error is within tolerance."""
@@ -238,7 +251,7 @@ class MotionDetector:
         cell_mag = np.linalg.norm(grid_average(flow, p.grid), axis=-1)
         return cell_error <= p.fb_tolerance + p.fb_relative * cell_mag
 
-    def _from_flow(self, flow, t0, t1, backward=None) -> Detection:
+    def _from_flow(self, flow, t0, t1, backward=None, gray=None, *, stream=False) -> Detection:
         p = self.params
         cell_flow = grid_average(flow, p.grid)
         rays1, valid1 = self.camera.unproject(self._centres + cell_flow)
@@ -246,9 +259,36 @@ class MotionDetector:
         valid = res.valid & valid1 & self._cell_valid
         if p.fb_check and backward is not None:
             valid &= self._consistent_cells(flow, backward)
-        return self._assemble(flow, cell_flow, res, valid)
+        if p.min_texture > 0 and gray is not None:
+            valid &= self._textured_cells(gray)
+        return self._assemble(flow, cell_flow, res, valid, stream=stream)
 
-    def _assemble(self, flow, cell_flow, res: ConstraintResult, valid) -> Detection:
+    def _carry(self, cells: NDArray, cell_flow: NDArray) -> NDArray:
+        """A previous detection's cell map carried to the current one: consecutive detections
+        are one frame apart, so regions moved by about ``flow / frame_gap``."""
+        g = self.params.grid
+        rows, cols = cells.shape
+        back = self._centres - cell_flow / self.params.frame_gap
+        c = np.clip(np.rint((back[..., 0] - (g - 1) / 2) / g), 0, cols - 1).astype(int)
+        r = np.clip(np.rint((back[..., 1] - (g - 1) / 2) / g), 0, rows - 1).astype(int)
+        return cells[r, c]
+
+    def _temporal_filter(self, cell_likelihood, cell_flow):
+        """Accumulated likelihood and the age (consecutive moving detections) of every cell."""
+        p = self.params
+        now = np.nan_to_num(cell_likelihood, nan=0.0)
+        if self._temporal is None:
+            acc, age_before = now, np.zeros(now.shape, np.int64)
+        else:
+            acc_before, age_before = self._temporal
+            acc = (1 - p.temporal_decay) * now + p.temporal_decay * self._carry(acc_before, cell_flow)
+            age_before = self._carry(age_before, cell_flow)
+        age = np.where(acc > p.threshold, age_before + 1, 0)
+        self._temporal = (acc, age)
+        return np.where(np.isnan(cell_likelihood), np.nan, acc), age
+
+    def _assemble(self, flow, cell_flow, res: ConstraintResult, valid, *,
+                  stream: bool = False) -> Detection:
         p, (w, h) = self.params, self.size
 
         def to_image(cells: NDArray[np.float64]) -> NDArray[np.float32]:
@@ -257,10 +297,14 @@ class MotionDetector:
             return full
 
         cell_likelihood = np.where(valid, res.likelihood, np.nan)
-        likelihood = to_image(res.likelihood)
         maps = {name: to_image(getattr(res, name)) for name in CONSTRAINT_NAMES}
+        age = None
+        if stream and (p.temporal_decay > 0 or p.persistence > 1):
+            cell_likelihood, age = self._temporal_filter(cell_likelihood, cell_flow)
+        likelihood = to_image(np.nan_to_num(cell_likelihood, nan=0.0))
         cell_mask, regions = segment_cells(cell_likelihood, threshold=p.threshold, grid=p.grid,
-                                           min_area=p.min_area)
+                                           min_area=p.min_area, age=age,
+                                           persistence=p.persistence)
         mask = grid_upsample(cell_mask.astype(np.uint8) * 255, p.grid, w, h)
         mask[~self._pixel_valid] = 0
         grid = Grid(p.grid, self._centres, cell_flow, cell_likelihood, valid)

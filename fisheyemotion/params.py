@@ -68,6 +68,17 @@ class Params:
         Streaming (``MotionDetector.apply``, eval): compare each frame with the one ``frame_gap``
         frames earlier (paper: 1, consecutive frames). Larger gaps multiply both the ego
         baseline and an object's own motion while the flow error stays about the same.
+    min_texture : float
+        Cells whose mean gradient magnitude (grey levels per pixel, Sobel on the previous frame)
+        is below this are not scored: flow in textureless areas (sky, flat walls) is whatever the
+        flow method's smoothness or initial estimate makes it. 0 disables the check.
+    temporal_decay : float
+        Streams only: the likelihood is accumulated over frames,
+        ``L = (1 - decay) L_now + decay L_before``, the previous map carried to the current frame
+        by the flow. 0 (default) keeps each frame's own likelihood (the paper).
+    persistence : int
+        Streams only: a region is reported only once some of its cells have been moving in this
+        many consecutive detections (carried by the flow). 1 (default) reports at once.
     fb_check : bool
         Forward-backward consistency: also compute the flow from ``curr`` to ``prev``; cells whose
         mean round-trip error exceeds ``fb_tolerance + fb_relative * |flow|`` pixels are not
@@ -100,6 +111,9 @@ class Params:
     flow_prior: str = "ego"
     prior_distance: float = 15.0
     frame_gap: int = 3
+    min_texture: float = 2.0
+    temporal_decay: float = 0.0
+    persistence: int = 1
     fb_check: bool = True
     fb_tolerance: float = 1.0
     fb_relative: float = 0.05
@@ -113,7 +127,7 @@ class Params:
             raise ValueError(f"weights: expected 4 non-negative numbers with a positive sum, got {self.weights!r}")
         object.__setattr__(self, "weights", tuple(float(v) for v in w))
         for name in ("lambda_h", "lambda_p", "lambda_p_ratio", "min_baseline", "epipole_margin",
-                     "threshold", "saturation", "fb_tolerance", "fb_relative"):
+                     "threshold", "saturation", "fb_tolerance", "fb_relative", "min_texture"):
             v = getattr(self, name)
             if not _finite(v) or v < 0:
                 raise ValueError(f"{name}: expected a finite number >= 0, got {v!r}")
@@ -127,7 +141,9 @@ class Params:
                               ("dis_preset", DIS_PRESETS), ("flow_prior", FLOW_PRIORS)):
             if getattr(self, name) not in options:
                 raise ValueError(f"{name}: expected one of {', '.join(options)}, got {getattr(self, name)!r}")
-        for name, low in (("grid", 1), ("min_area", 0), ("frame_gap", 1)):
+        if not _finite(self.temporal_decay) or not 0 <= self.temporal_decay < 1:
+            raise ValueError(f"temporal_decay: expected a number in [0, 1), got {self.temporal_decay!r}")
+        for name, low in (("grid", 1), ("min_area", 0), ("frame_gap", 1), ("persistence", 1)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
@@ -142,8 +158,10 @@ class Params:
     @classmethod
     def paper(cls, **changes: Any) -> Params:
         """The paper's pipeline exactly: Farneback on consecutive frames, no ego prior, no
-        forward-backward check (the defaults add these, as chosen by ``docs/evaluation.md``)."""
-        return cls(**{"flow_prior": "none", "fb_check": False, "frame_gap": 1, **changes})
+        forward-backward check, no texture check (the defaults add these, as chosen by
+        ``docs/evaluation.md``)."""
+        return cls(**{"flow_prior": "none", "fb_check": False, "frame_gap": 1, "min_texture": 0.0,
+                      **changes})
 
     def replace(self, **changes: Any) -> Params:
         """A copy with some fields changed (validated again)."""

@@ -31,13 +31,17 @@ class Region(NamedTuple):
 
 
 def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, grid: int,
-                  min_area: int) -> tuple[NDArray[np.bool_], list[Region]]:
-    """Cells above ``threshold`` grouped 8-connected; regions under ``min_area`` pixels dropped.
+                  min_area: int, age: NDArray | None = None,
+                  persistence: int = 1) -> tuple[NDArray[np.bool_], list[Region]]:
+    """Cells above ``threshold`` grouped 8-connected; regions under ``min_area`` pixels dropped,
+    and, with ``age``, regions none of whose cells has been moving ``persistence`` times.
 
     Parameters
     ----------
     cell_likelihood : ndarray, shape (rows, cols)
         NaN for invalid cells (never moving).
+    age : ndarray of int, shape (rows, cols), optional
+        Consecutive detections each cell has been moving in (streams).
 
     Returns
     -------
@@ -51,6 +55,8 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
     for prop in regionprops(labels, intensity_image=np.nan_to_num(cell_likelihood, nan=0.0)):
         area = int(prop.area) * grid * grid
         if area < min_area:
+            continue
+        if age is not None and persistence > 1 and age[labels == prop.label].max() < persistence:
             continue
         keep[labels == prop.label] = True
         r0, c0, r1, c1 = prop.bbox

@@ -87,3 +87,44 @@ def test_grid_helpers_average_and_upsample():
     assert up.shape == (7, 11) and up[6, 10] == cells[1, 2] and up[0, 0] == cells[0, 0]
     centres = grid_centres(11, 7, 3)
     assert centres[0, 0].tolist() == [1.0, 1.0] and centres[1, 2].tolist() == [7.0, 4.0]
+
+
+def test_texture_check_drops_textureless_cells(road_frames):
+    r, frames = road_frames
+    flow = np.nan_to_num(frames[1].flow)
+    det = fm.MotionDetector(CAM, params=fm.Params(min_texture=2.0), roi=r.roi())
+    flat = np.full((240, 320), 128, np.uint8)
+    none_scored = det.detect_flow(flow, frames[0].pose, frames[1].pose, prev=flat)
+    scored = det.detect_flow(flow, frames[0].pose, frames[1].pose, prev=frames[0].image)
+    assert not none_scored.grid.valid.any()
+    assert scored.grid.valid.sum() > 0.5 * fm.MotionDetector(CAM, roi=r.roi()).detect_flow(
+        flow, frames[0].pose, frames[1].pose).grid.valid.sum()
+
+
+def test_persistence_waits_for_repeated_detections_in_streams():
+    cam = fm.calib.KannalaBrandt(fx=40, fy=40, cx=31.5, cy=23.5, width=64, height=48)
+    params = fm.Params.paper(grid=4, min_area=0, threshold=1e-4, persistence=3)
+    det = fm.MotionDetector(cam, params=params)
+    pose0, pose1 = np.eye(4), np.eye(4)
+    pose1[2, 3] = 0.2  # forward motion; a uniform sideways flow is inconsistent with it
+    flow = np.zeros((48, 64, 2), np.float32)
+    flow[..., 0] = 3.0
+    counts = [det.detect_flow(flow, pose0, pose1, stream=True).mask.any() for _ in range(4)]
+    assert counts == [False, False, True, True]
+    assert det.detect_flow(flow, pose0, pose1).mask.any()  # a single pair is not filtered
+    det.reset()
+    assert not det.detect_flow(flow, pose0, pose1, stream=True).mask.any()
+
+
+def test_temporal_decay_accumulates_the_likelihood():
+    cam = fm.calib.KannalaBrandt(fx=40, fy=40, cx=31.5, cy=23.5, width=64, height=48)
+    det = fm.MotionDetector(cam, params=fm.Params.paper(grid=4, temporal_decay=0.5))
+    pose0, pose1 = np.eye(4), np.eye(4)
+    pose1[2, 3] = 0.2
+    moving = np.zeros((48, 64, 2), np.float32)
+    moving[..., 0] = 3.0
+    first = det.detect_flow(moving, pose0, pose1, stream=True).likelihood
+    still = det.detect_flow(np.zeros_like(moving), pose0, pose1, stream=True).likelihood
+    # The static second pair keeps half of the first pair's likelihood.
+    sel = first > 0
+    np.testing.assert_allclose(still[sel], 0.5 * first[sel], rtol=1e-5, atol=1e-6)

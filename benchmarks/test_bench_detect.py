@@ -1,0 +1,108 @@
+"""detect() at 640x480 split into its stages, beside the flow method alone; renderer; streams.
+
+Groups (peer in brackets, see report.py): detect-farneback [Farneback alone], detect-dis-*
+[DIS preset alone], render-640x480 [one flow computation], stream-64x48 [none: per frame].
+"""
+
+from __future__ import annotations
+
+import os
+
+import cv2
+import numpy as np
+import pytest
+
+import fisheyemotion as fm
+from fisheyemotion import synth
+from fisheyemotion.constraints import constraints
+from fisheyemotion.flow import grid_average
+
+CAM = fm.calib.load(os.path.join(os.path.dirname(__file__), "..", "data", "calib",
+                                 "front_kb_640x480.yaml"))
+SCENARIO = synth.load_scenario("crossing")
+
+
+@pytest.fixture(scope="module")
+def frames():
+    r = synth.Renderer(CAM, SCENARIO)
+    out = [r.render(k) for k in range(4)]
+    return out, r.roi()
+
+
+def _gray(f):
+    return cv2.cvtColor(f.image, cv2.COLOR_BGR2GRAY)
+
+
+CONFIGS = {
+    "farneback": dict(flow="farneback"),
+    "dis-ultrafast": dict(flow="dis", dis_preset="ultrafast"),
+    "dis-fast": dict(flow="dis", dis_preset="fast"),
+    "dis-medium": dict(flow="dis", dis_preset="medium"),
+}
+
+
+@pytest.mark.parametrize("name", CONFIGS)
+@pytest.mark.parametrize("stage", ["flow_alone", "paper_pipeline", "default_pipeline",
+                                   "ray_lookup", "constraints", "segmentation"])
+def test_detect_stage(benchmark, frames, name, stage):
+    fr, roi = frames
+    g0, g1 = _gray(fr[0]), _gray(fr[3])
+    p0, p1 = fr[0].pose, fr[3].pose
+    benchmark.group = f"detect-{name}"
+    paper = fm.MotionDetector(CAM, params=fm.Params.paper(**CONFIGS[name]), roi=roi)
+    if stage == "flow_alone":
+        benchmark(paper._flow, g0, g1)
+    elif stage == "paper_pipeline":
+        benchmark(paper.detect, g0, g1, p0, p1)
+    elif stage == "default_pipeline":
+        det = fm.MotionDetector(CAM, params=fm.Params(**CONFIGS[name]), roi=roi)
+        benchmark(det.detect, g0, g1, p0, p1)
+    else:
+        flow = paper._flow(g0, g1)
+        cells = grid_average(flow, 5)
+        if stage == "ray_lookup":
+            benchmark(lambda: (grid_average(flow, 5), CAM.unproject(paper._centres + cells)))
+        elif stage == "constraints":
+            rays1, _ = CAM.unproject(paper._centres + cells)
+            benchmark(constraints, paper._rays0, rays1, p0, p1, road=paper.road,
+                      params=paper.params)
+        else:
+            rays1, _ = CAM.unproject(paper._centres + cells)
+            res = constraints(paper._rays0, rays1, p0, p1, road=paper.road, params=paper.params)
+            valid = res.valid & paper._cell_valid
+            benchmark(paper._assemble, flow, cells, res, valid)
+
+
+@pytest.mark.benchmark(group="render-640x480")
+def test_render_frame(benchmark):
+    r = synth.Renderer(CAM, SCENARIO)
+    r.render(0)
+    counter = iter(range(1, 10_000))
+    benchmark.pedantic(lambda: r.render(next(counter)), rounds=5, iterations=1)
+
+
+@pytest.mark.benchmark(group="render-640x480")
+def test_render_peer_farneback(benchmark, frames):
+    fr, _ = frames
+    benchmark(fm.MotionDetector(CAM, params=fm.Params.paper())._flow, _gray(fr[0]), _gray(fr[1]))
+
+
+@pytest.mark.benchmark(group="stream-64x48")
+def test_stream_10000_frames(benchmark):
+    import resource
+
+    cam = fm.calib.KannalaBrandt(fx=40, fy=40, cx=31.5, cy=23.5, width=64, height=48)
+    rng = np.random.default_rng(0)
+    images = [rng.integers(0, 255, (48, 64), dtype=np.uint8) for _ in range(4)]
+
+    def run():
+        det = fm.MotionDetector(cam, params=fm.Params(flow="dis", dis_preset="ultrafast", grid=4))
+        pose = np.eye(4)
+        for i in range(10_000):
+            pose = pose.copy()
+            pose[0, 3] += 0.01
+            det.apply(images[i % 4], pose)
+
+    benchmark.pedantic(run, rounds=1, iterations=1)
+    benchmark.extra_info["frames"] = 10_000
+    benchmark.extra_info["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
