@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from fisheyemotion.calib.transforms import make_transform
 
 import fisheyemotion as fm
-from fisheyemotion.calib.transforms import make_transform
 
 from .naive import naive_likelihood
 

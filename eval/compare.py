@@ -6,10 +6,10 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from fisheyemotion.calib.fit import fit_model
 from matplotlib.figure import Figure
 
 from fisheyemotion import calib, synth
-from fisheyemotion.calib.fit import fit_model
 from fisheyemotion.params import Params
 
 from .evaluate import evaluate

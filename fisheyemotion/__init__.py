@@ -4,7 +4,7 @@
 >>> likelihood, mask = fm.detect(prev, curr, pose0, pose1, camera=cam)
 """
 
-from . import calib, poses
+from . import calib, draw, poses
 from .constraints import ConstraintResult, constraints
 from .detect import Detection, Grid, MotionDetector, detect
 from .params import Params
@@ -12,6 +12,7 @@ from .road import Road
 from .segment import Region
 
 __all__ = [
+    "draw", "poses",
     "ConstraintResult", "Detection", "Grid", "MotionDetector", "Params", "Region", "Road",
     "calib", "constraints", "detect",
 ]

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-from importlib.metadata import entry_points
 from collections.abc import Iterator, Sequence
+from importlib.metadata import entry_points
 from pathlib import Path
 
 import cv2
@@ -22,7 +22,6 @@ from .detect import MotionDetector
 from .params import Params
 from .poses import read_tum
 from .road import Road
-from .sequence import Sequence as SequenceFolder
 
 REPO_DATA = Path(__file__).resolve().parents[1] / "data"
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"}

@@ -106,7 +106,8 @@ class MotionDetector:
     def __init__(self, camera: CameraModel, road: Road | None = None,
                  params: Params | None = None, *, roi: NDArray | None = None) -> None:
         if not isinstance(camera, CameraModel):
-            raise ValueError(f"camera: expected a fisheyemotion.calib camera model, got {type(camera).__name__}")
+            raise ValueError("camera: expected a fisheyemotion.calib camera model, "
+                             f"got {type(camera).__name__}")
         self.camera = camera
         self.road = Road() if road is None else road
         self.params = Params() if params is None else params

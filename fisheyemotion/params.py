@@ -124,7 +124,8 @@ class Params:
     def __post_init__(self) -> None:
         w = tuple(self.weights)
         if len(w) != 4 or not all(_finite(v) and v >= 0 for v in w) or sum(w) <= 0:
-            raise ValueError(f"weights: expected 4 non-negative numbers with a positive sum, got {self.weights!r}")
+            raise ValueError("weights: expected 4 non-negative numbers with a positive sum, "
+                             f"got {self.weights!r}")
         object.__setattr__(self, "weights", tuple(float(v) for v in w))
         for name in ("lambda_h", "lambda_p", "lambda_p_ratio", "min_baseline", "epipole_margin",
                      "threshold", "saturation", "fb_tolerance", "fb_relative", "min_texture"):
@@ -152,7 +153,8 @@ class Params:
                 raise ValueError(f"{name}: expected a bool, got {getattr(self, name)!r}")
         fb = dict(self.farneback) if isinstance(self.farneback, dict) else None
         if fb is None or set(fb) - set(FARNEBACK_DEFAULTS):
-            raise ValueError(f"farneback: expected a dict with keys among {sorted(FARNEBACK_DEFAULTS)}, got {self.farneback!r}")
+            raise ValueError(f"farneback: expected a dict with keys among "
+                             f"{sorted(FARNEBACK_DEFAULTS)}, got {self.farneback!r}")
         object.__setattr__(self, "farneback", {**FARNEBACK_DEFAULTS, **fb})
 
     @classmethod

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-
 from fisheyemotion.calib.transforms import make_transform
 
 

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from fisheyemotion.calib.transforms import make_transform
 from hypothesis import given
 from hypothesis import strategies as st
 
 import fisheyemotion as fm
-from fisheyemotion.calib.transforms import make_transform
 
 from .cameras import MODEL_SAMPLES
 from .scenes import camera_pose, moved, random_rotation, rays_of

@@ -5,12 +5,19 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
+from fisheyemotion.eval import (
+    combine,
+    evaluate,
+    evaluate_sequence,
+    frame_metrics,
+    object_metrics,
+    table2,
+    write_report,
+)
+from fisheyemotion.eval.cli import run_eval
 
 import fisheyemotion as fm
 from fisheyemotion import synth
-from fisheyemotion.eval import (combine, evaluate, evaluate_sequence, frame_metrics,
-                                object_metrics, table2, write_report)
-from fisheyemotion.eval.cli import run_eval
 
 from .cameras import TUMVI_KB
 

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from fisheyemotion.calib.transforms import invert_transform, quat_to_matrix
 from hypothesis import given
 from hypothesis import strategies as st
 
 from fisheyemotion import calib
-from fisheyemotion.calib.transforms import invert_transform, quat_to_matrix
 
 from .cameras import ALL_CAMERAS, CAMERA_IDS, TUMVI_KB
 from .conftest import CALIB
@@ -160,7 +160,8 @@ def test_non_monotonic_kb_outer_pixels_invalid_inner_round_trip():
         ("ws.json", '{"intrinsic": {"model": "radial_poly", "k1": 1, "k2": 0, "k3": 0, '
          '"cx_offset": 0, "cy_offset": 0, "width": 10, "height": 10}}', r"ws\.json: intrinsic\.k4: missing"),
         ("cv.yaml", "%YAML:1.0\n---\nimage_width: 10\ncamera_matrix: !!opencv-matrix\n   rows: 3\n"
-         "   cols: 3\n   dt: d\n   data: [1., 0., 1., 0., 1., 1., 0., 0., 1.]\n", r"cv\.yaml: image_height: missing"),
+         "   cols: 3\n   dt: d\n   data: [1., 0., 1., 0., 1., 1., 0., 0., 1.]\n",
+         r"cv\.yaml: image_height: missing"),
         ("x.yaml", "foo: 1\n", r"x\.yaml: .*unrecognised"),
         ("ros.yaml", "image_width: 10\nimage_height: 10\ncamera_matrix: {data: [1, 0, 1, 0, 1, 1, 0, 0, 1]}\n"
          "distortion_model: plumb_bob\ndistortion_coefficients: {data: [0.1, 0, 0, 0, 0]}\n",

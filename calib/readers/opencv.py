@@ -23,7 +23,6 @@ from ..registry import model_class
 from ._fields import Fields
 from .rig import Rig
 
-
 # cv2 reports parse errors as cv2.error, and some malformed XML as SystemError.
 _CV2_ERRORS = (cv2.error, SystemError)
 

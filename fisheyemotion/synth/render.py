@@ -316,7 +316,7 @@ class Renderer:
         sky = prev.obj == SKY
         road = prev.obj == ROAD
         world[road] = prev.local[road]
-        for i, (box, p) in enumerate(self._boxes_at(t1)):
+        for i, (_, p) in enumerate(self._boxes_at(t1)):
             sel = prev.obj == i + 1
             if sel.any():
                 world[sel] = prev.local[sel] @ p[:3, :3].T + p[:3, 3]

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import cv2
 import numpy as np
@@ -23,7 +23,7 @@ _SOURCES = {
 TEXTURES = tuple(_SOURCES)
 
 
-@lru_cache(maxsize=None)
+@cache
 def texture(name: str) -> NDArray[np.float32]:
     """``(H, W, 3)`` float32 BGR in [0, 255] (read-only)."""
     loader, tint = _SOURCES[name]
@@ -36,7 +36,7 @@ def texture(name: str) -> NDArray[np.float32]:
     return out
 
 
-@lru_cache(maxsize=None)
+@cache
 def mipmaps(name: str) -> tuple[NDArray[np.float32], ...]:
     """The texture and its successive 2x box-filtered halvings (down to 4 texels)."""
     levels = [texture(name)]
