@@ -176,3 +176,22 @@ def test_combine_adds_the_flow_column(sequences):
     tables = combine(res)
     assert (tables["frames"].flow == "dis").all()
     write_report(res, sequences[0].parent / "r", FAST)
+
+
+def test_compare_models_side_by_side(tmp_path):
+    from fisheyemotion.calib.fit import fit_model
+    from fisheyemotion.eval.compare import compare
+
+    kb = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 50.0, "fy": 50.0, "cx": 79.5, "cy": 59.5,
+                                   "width": 160, "height": 120})
+    ds, rms = fit_model(kb, "double_sphere")
+    assert rms < 1.0 and ds.width == 160
+    params = fm.Params(flow="dis", dis_preset="fast", frame_gap=1, grid=4, min_area=16)
+    out = compare([("kb", kb), ("ds", ds)], ["crossing"], tmp_path, params=params, frames=3,
+                  workers=1, progress=False)
+    table = pd.read_csv(tmp_path / "compare.csv")
+    assert set(table.camera) == {"kb", "ds"} and (table.round_trip_px < 1e-6).all()
+    fits = pd.read_csv(tmp_path / "fits.csv")
+    assert set(fits.fitted_model) == {"kannala_brandt", "double_sphere"}
+    assert (fits.rms_px < 1.0).all()
+    assert out.exists() and "base64" in out.read_text()
