@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 from collections import OrderedDict, deque
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -51,6 +52,24 @@ class Grid(NamedTuple):
     valid: NDArray[np.bool_]
 
 
+class LazyMaps(Mapping):
+    """Per-constraint full-resolution maps, upsampled from the grid on first access."""
+
+    def __init__(self, cells: dict[str, NDArray], to_image) -> None:
+        self._cells, self._to_image, self._done = cells, to_image, {}
+
+    def __getitem__(self, name: str) -> NDArray[np.float32]:
+        if name not in self._done:
+            self._done[name] = self._to_image(self._cells[name])
+        return self._done[name]
+
+    def __iter__(self):
+        return iter(self._cells)
+
+    def __len__(self) -> int:
+        return len(self._cells)
+
+
 @dataclass(frozen=True, eq=False)
 class Detection:
     """Result of :func:`detect`; unpacks as ``likelihood, mask``.
@@ -61,8 +80,9 @@ class Detection:
         Motion likelihood; 0 outside the camera's valid region and at invalid cells.
     mask : ndarray of uint8, shape (H, W)
         255 on moving regions, else 0.
-    maps : dict of str to ndarray of float32, shape (H, W)
-        Per-constraint deviations ``epipolar``, ``depth``, ``height``, ``antiparallel``.
+    maps : mapping of str to ndarray of float32, shape (H, W)
+        Per-constraint deviations ``epipolar``, ``depth``, ``height``, ``antiparallel``
+        (upsampled from the grid when first read).
     flow : ndarray of float32, shape (H, W, 2)
         The dense flow.
     grid : Grid
@@ -72,7 +92,7 @@ class Detection:
 
     likelihood: NDArray[np.float32]
     mask: NDArray[np.uint8]
-    maps: dict[str, NDArray[np.float32]] = field(repr=False)
+    maps: Mapping[str, NDArray[np.float32]] = field(repr=False)
     flow: NDArray[np.float32] = field(repr=False)
     grid: Grid = field(repr=False)
     regions: list[Region] = field(default_factory=list)
@@ -128,7 +148,7 @@ class MotionDetector:
                 raise ValueError(f"roi: expected shape {pixel_valid.shape} (the camera's), got {roi.shape}")
             pixel_valid &= roi != 0
         # A cell is used only if all of its pixels have rays.
-        self._cell_valid = valid0 & (grid_average(pixel_valid.astype(np.float32), g) == 1.0)
+        self._cell_valid = valid0 & (grid_average(pixel_valid.astype(np.float32), g) > 1 - 1e-6)
         self._pixel_valid = pixel_valid
         self._flow = FlowEstimator(self.params)
         self._prior = (EgoFlowPrior(camera, distance=self.params.prior_distance)
@@ -298,7 +318,7 @@ class MotionDetector:
             return full
 
         cell_likelihood = np.where(valid, res.likelihood, np.nan)
-        maps = {name: to_image(getattr(res, name)) for name in CONSTRAINT_NAMES}
+        maps = LazyMaps({name: getattr(res, name) for name in CONSTRAINT_NAMES}, to_image)
         age = None
         if stream and (p.temporal_decay > 0 or p.persistence > 1):
             cell_likelihood, age = self._temporal_filter(cell_likelihood, cell_flow)

@@ -82,7 +82,9 @@ def test_grid_helpers_average_and_upsample():
     img = np.arange(7 * 11, dtype=np.float32).reshape(7, 11)
     cells = grid_average(img, 3)
     assert cells.shape == (2, 3)
-    assert cells[0, 0] == img[:3, :3].mean() and cells[1, 2] == img[3:6, 6:9].mean()
+    assert cells[0, 0] == pytest.approx(img[:3, :3].mean(), rel=1e-6)
+    assert cells[1, 2] == pytest.approx(img[3:6, 6:9].mean(), rel=1e-6)
+    assert grid_average(img.astype(np.int32), 3)[1, 2] == img[3:6, 6:9].mean()  # numpy path
     up = grid_upsample(cells, 3, 11, 7)
     assert up.shape == (7, 11) and up[6, 10] == cells[1, 2] and up[0, 0] == cells[0, 0]
     centres = grid_centres(11, 7, 3)
