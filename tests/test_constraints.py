@@ -270,3 +270,31 @@ def test_depth_in_previous_view_is_an_option():
     v = both.valid
     np.testing.assert_allclose(both.depth[v], np.linalg.norm(np.cross(q, e), axis=1)[v], rtol=1e-9)
     assert (both.depth[v] > 0).all() and np.all(paper.depth[v] == 0)
+
+
+def test_road_from_the_papers_inputs_and_from_a_vehicle_pose():
+    rng = np.random.default_rng(7)
+    pose = camera_pose(rng, height=1.3, pitch_deg=12.0, yaw_deg=40.0)
+    # The paper's inputs: camera height and R_C (cam_from_road) with h = R_C (0, 0, -1).
+    cam_from_road = pose[:3, :3].T  # the world frame here is the road frame
+    road = fm.Road.from_camera(height=1.3, cam_from_road=cam_from_road, world_from_cam=pose)
+    np.testing.assert_allclose(road.up, [0, 0, 1], atol=1e-12)
+    assert road.offset == pytest.approx(0.0, abs=1e-12)
+    world_from_vehicle = make_transform(random_rotation(rng), [3.0, -2.0, 0.5])
+    from_vehicle = fm.Road.from_vehicle(world_from_vehicle)
+    ground = world_from_vehicle @ np.array([[5.0, 1.0, 0.0, 1.0], [-2.0, 3.0, 0.0, 1.0]]).T
+    np.testing.assert_allclose(from_vehicle.height(ground[:3].T), 0.0, atol=1e-12)
+    above = world_from_vehicle @ np.array([0.0, 0.0, 2.0, 1.0])
+    assert from_vehicle.height(above[:3]) == pytest.approx(2.0)
+    with pytest.raises(ValueError, match="height"):
+        fm.Road.from_camera(height=-1.0, cam_from_road=np.eye(3), world_from_cam=np.eye(4))
+    with pytest.raises(ValueError, match="normal"):
+        fm.Road(normal=(0, 0, 0))
+
+
+def test_road_moves_with_a_change_of_world_frame():
+    road = fm.Road(normal=(0, 0, 1), offset=0.2)
+    t = make_transform(random_rotation(np.random.default_rng(8)), [1.0, 2.0, 3.0])
+    moved = road.transformed(t)
+    point = np.array([4.0, -1.0, 0.2])  # on the road
+    assert moved.height(t[:3, :3] @ point + t[:3, 3]) == pytest.approx(0.0, abs=1e-12)

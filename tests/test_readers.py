@@ -283,3 +283,16 @@ def test_malformed_opencv_matrix_repeatedly_does_not_abort_the_process():
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0 and done.stdout.strip() == "ok"
+
+
+def test_basalt_ucm_becomes_meis_unified(tmp_path):
+    doc = ('{"value0": {"intrinsics": [{"camera_type": "ucm", "intrinsics": {"fx": 200.0, '
+           '"fy": 201.0, "cx": 320.0, "cy": 240.0, "alpha": 0.6}}], "resolution": [[640, 480]]}}')
+    (tmp_path / "ucm.json").write_text(doc)
+    cam = calib.load(tmp_path / "ucm.json")
+    assert isinstance(cam, calib.Unified)
+    assert cam.xi == pytest.approx(1.5) and cam.fx == pytest.approx(500.0)
+    ray = np.array([0.3, -0.2, 0.5])
+    d = np.linalg.norm(ray)
+    expected_u = 200.0 * ray[0] / (0.6 * d + 0.4 * ray[2]) + 320.0
+    assert cam.project(ray)[0][0] == pytest.approx(expected_u, rel=1e-12)
