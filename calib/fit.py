@@ -44,6 +44,8 @@ def fit_model(reference: CameraModel, name: str, *, step: int = 8,
     start = {"fx": fx, "fy": fy, "cx": cx, "cy": cy, **_START, **_START_BY_MODEL.get(name, {})}
     names = [n for n in cls.param_names if n in start]
     fixed = {n: getattr(reference, n) for n in cls.param_names if n not in start}
+    if reference.name == name:  # refit of the same model: start from the answer
+        start.update({n: getattr(reference, n) for n in names})
     x0 = np.array([start[n] for n in names])
     penalty = float(np.hypot(reference.width, reference.height))
 
