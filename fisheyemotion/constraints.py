@@ -1,5 +1,8 @@
 """The spherical constraint engine (Mariotti & Hughes, ITSC 2019), derived on the epipolar circle.
 
+Input checks and the static-camera case live here; the per-ray geometry is the numba kernel in
+``_engine_kernel.py``.
+
 See ``docs/geometry.md`` for the derivation. In short, with ``C`` and ``C'`` the previous and
 current camera centres, ``b = |C - C'|``, ``e' = (C - C') / b`` and a static point
 ``X = C + lambda p``::
@@ -27,13 +30,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ._engine_kernel import constraint_kernel
 from .calib._arrays import as_points
 from .calib.transforms import check_rigid
 from .params import Params
 from .road import Road
-
-#: A projected current ray shorter than this has no direction on the epipolar plane.
-_DEGENERATE = 1e-12
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,10 +66,6 @@ class ConstraintResult:
 def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
     with np.errstate(invalid="ignore", divide="ignore"):
         return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-
-def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.einsum("...i,...i->...", a, b)
 
 
 def constraints(
@@ -115,73 +112,41 @@ def constraints(
     if not isinstance(params, Params):
         raise ValueError(f"params: expected a fisheyemotion.Params, got {type(params).__name__}")
 
-    # Rays in the world frame: rotation is compensated here.
-    with np.errstate(invalid="ignore", over="ignore"):
-        p = _unit(p_cam @ t0[:3, :3].T)
-        q = _unit(q_cam @ t1[:3, :3].T)
-    finite = np.isfinite(p).all(axis=-1) & np.isfinite(q).all(axis=-1)
+    shape = p_cam.shape[:-1]
+    p_flat = np.ascontiguousarray(p_cam.reshape(-1, 3))
+    q_flat = np.ascontiguousarray(q_cam.reshape(-1, 3))
     baseline = t0[:3, 3] - t1[:3, 3]
     b = float(np.linalg.norm(baseline))
-    zeros = np.zeros(p.shape[:-1])
 
     if b < params.min_baseline:
+        # Camera standing still: the angle the rotation-compensated ray moved.
+        with np.errstate(invalid="ignore", over="ignore"):
+            p = _unit(p_flat @ t0[:3, :3].T)
+            q = _unit(q_flat @ t1[:3, :3].T)
+        finite = np.isfinite(p).all(axis=-1) & np.isfinite(q).all(axis=-1)
         xi = np.linalg.norm(np.cross(q, p), axis=-1)
-        return _result(zeros, zeros, zeros, zeros, xi, finite, static=True)
+        zeros = np.zeros(len(p))
+        return _result(zeros, zeros, zeros, zeros, xi, finite, static=True, shape=shape)
 
-    e = baseline / b
-    n_raw = np.cross(p, e)
-    sin_pe = np.linalg.norm(n_raw, axis=-1)
-    valid = finite & (sin_pe > params.epipole_margin)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        n = n_raw / sin_pe[..., None]
-        w = (p - _dot(p, e)[..., None] * e) / sin_pe[..., None]
-
-    # Planar epipolar constraint.
-    qn = _dot(q, n)
-    xi_e = np.abs(qn)
-
-    # Angular coordinates on the epipolar great circle: e' at 0, p at Theta in (0, pi).
-    q_pi = q - qn[..., None] * n
-    has_dir = np.linalg.norm(q_pi, axis=-1) > _DEGENERATE
-    theta = np.arctan2(sin_pe, _dot(p, e))
-    phi = np.arctan2(_dot(q_pi, w), _dot(q_pi, e))  # scale-free: q_pi need not be unit
-
-    # Positive depth: p'_Pi must lie on the arc [e', p].
-    beyond_p = (phi > theta) | (phi < theta - np.pi)  # current camera: behind it
-    xi_d = np.where(beyond_p, np.abs(np.sin(phi - theta)), 0.0)
-    if params.depth_both_views:
-        beyond_e = (phi < 0) & (phi >= theta - np.pi)  # previous camera: behind it
-        xi_d = np.where(beyond_e, np.abs(np.sin(phi)), xi_d)
-
-    # Positive height and anti-parallel: below the horizon, relative to the road point p'_r.
-    down = -road.up
-    eta = float(road.height(t0[:3, 3]))
-    p_down, q_down = _dot(p, down), _dot(q, down)
-    below = (p_down > params.horizon_margin) & (q_down > params.horizon_margin) & (eta > 0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        delta = np.where(below, eta / p_down, 0.0)
-    # p'_r ~ b e' + delta p  =>  its angle from e' on the circle:
-    phi_r = np.arctan2(delta * sin_pe, b + delta * np.cos(theta))
-    on_arc = (phi >= 0) & (phi <= theta)
-    deviation = np.abs(np.sin(phi - phi_r))  # |p'_Pi x p'_r|
-    xi_h = np.where(below & on_arc & (phi > phi_r), np.maximum(deviation - params.lambda_h, 0), 0)
-    if params.lambda_p_mode == "adaptive":
-        lambda_p = params.lambda_p_ratio * np.abs(np.sin(theta - phi_r))  # |p'_r x p|
-    else:
-        lambda_p = params.lambda_p
-    xi_p = np.where(below & on_arc & (phi < phi_r), np.maximum(deviation - lambda_p, 0), 0)
-
-    # p' perpendicular to the epipolar plane: maximal epipolar deviation, no direction on it.
-    xi_d, xi_h, xi_p = (np.where(has_dir, x, 0.0) for x in (xi_d, xi_h, xi_p))
-    mu = params.weights
-    likelihood = (mu[0] * xi_e + mu[1] * xi_d + mu[2] * xi_h + mu[3] * xi_p) / sum(mu)
-    return _result(xi_e, xi_d, xi_h, xi_p, likelihood, valid, static=False)
+    out = np.empty((5, len(p_flat)))
+    valid = np.empty(len(p_flat), dtype=bool)
+    constraint_kernel(
+        p_flat, q_flat, np.ascontiguousarray(t0[:3, :3]), np.ascontiguousarray(t1[:3, :3]),
+        baseline / b, b, -road.up, float(road.height(t0[:3, 3])), params.lambda_h,
+        params.lambda_p, params.lambda_p_mode == "adaptive", params.lambda_p_ratio,
+        params.depth_both_views, params.epipole_margin, params.horizon_margin,
+        np.asarray(params.weights, dtype=np.float64), out, valid)
+    xi_e, xi_d, xi_h, xi_p, likelihood = (x.reshape(shape) for x in out)
+    return ConstraintResult(xi_e, xi_d, xi_h, xi_p, likelihood, valid.reshape(shape),
+                            static_camera=False)
 
 
-def _result(xi_e, xi_d, xi_h, xi_p, likelihood, valid, *, static: bool) -> ConstraintResult:
+def _result(xi_e, xi_d, xi_h, xi_p, likelihood, valid, *, static: bool,
+            shape: tuple[int, ...]) -> ConstraintResult:
     out = []
     for x in (xi_e, xi_d, xi_h, xi_p, likelihood):
         x = np.array(x, dtype=np.float64)
         x[~valid] = np.nan
-        out.append(x)
-    return ConstraintResult(*out, valid=np.asarray(valid, dtype=bool), static_camera=static)
+        out.append(x.reshape(shape))
+    return ConstraintResult(*out, valid=np.asarray(valid, dtype=bool).reshape(shape),
+                            static_camera=static)
