@@ -56,6 +56,16 @@ def cmd_eval(args: argparse.Namespace) -> int:
                                workers=args.workers, scheduler=args.scheduler,
                                progress=not args.quiet,
                                commands=["fisheyemotion " + shlex.join(sys.argv[1:])])
+    if args.additions:
+        from .evaluate import additions_table
+
+        table = additions_table(paths, _flows(args.flow), workers=args.workers,
+                                progress=not args.quiet)
+        table.to_csv(Path(args.out) / "additions.csv", index=False)
+        md = Path(args.out) / "report.md"
+        md.write_text(md.read_text() + "\n## The additions beyond the paper, each alone and all "
+                      "together\n\n" + table.to_markdown(index=False, floatfmt=".2f") + "\n")
+        print(table.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
     _print_table2(results)
     print(f"report: {report}")
     return 0
@@ -121,6 +131,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="report folder")
     p.add_argument("--workers", type=int, help="local processes (default: CPU count)")
     p.add_argument("--scheduler", help="Dask distributed scheduler address (tcp://host:port)")
+    p.add_argument("--additions", action="store_true",
+                   help="also evaluate the paper's pipeline with each addition alone and all "
+                        "together (additions.csv, a section of report.md)")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_eval)
 

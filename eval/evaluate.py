@@ -18,7 +18,22 @@ from fisheyemotion.frames import to_gray
 from fisheyemotion.params import Params
 from fisheyemotion.sequence import Sequence
 
+__all__ = ["ADDITIONS", "ABLATION_WEIGHTS", "SequenceResult", "additions_table", "combine",
+           "evaluate", "evaluate_sequence", "sequence_paths"]
+
 from .metrics import frame_metrics, likelihood_histograms, object_metrics
+
+#: The additions beyond the paper (docs/geometry.md), each alone on top of ``Params.paper()``;
+#: "all (defaults)" is ``Params()``.
+ADDITIONS = {
+    "paper": {},
+    "+ ego prior": {"flow_prior": "ego"},
+    "+ warp prior": {"flow_prior": "warp"},
+    "+ forward-backward check": {"fb_check": True},
+    "+ texture check": {"min_texture": 2.0},
+    "+ frame gap 3": {"frame_gap": 3},
+    "+ temporal persistence 2": {"persistence": 2},
+}
 
 #: Ablation: weights (mu_e, mu_d, mu_h, mu_p) of each variant; "paper" is the configured Params.
 ABLATION_WEIGHTS = {
@@ -166,6 +181,30 @@ def combine(results: list[SequenceResult]) -> dict[str, pd.DataFrame]:
         return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 
     return {"objects": cat("objects"), "frames": cat("frames"), "ablation": cat("ablation")}
+
+
+def additions_table(paths: list, flows: list[str], *, workers: int | None = None,
+                    progress: bool = True) -> pd.DataFrame:
+    """Table 2 figures of the paper's pipeline, each addition alone, and all of them (defaults),
+    for each flow method (one evaluation per variant and flow)."""
+    from .metrics import pixel_scores, table2
+
+    rows = []
+    variants = {name: Params.paper(**changes) for name, changes in ADDITIONS.items()}
+    variants["all (defaults)"] = Params()
+    for flow in flows:
+        for name, params in variants.items():
+            res = evaluate(paths, params.replace(flow=flow), workers=workers, progress=progress,
+                           ablation=False)
+            tables = combine(res)
+            t = table2(tables["objects"], tables["frames"]).set_index("category")
+            row = {"flow": flow, "variant": name}
+            for cat in t.index:
+                row[f"{cat} det"] = t.loc[cat, "detection_rate"]
+                row[f"{cat} cov"] = t.loc[cat, "coverage_rate"]
+            row["iou"] = pixel_scores(tables["frames"])["iou"]
+            rows.append(row)
+    return pd.DataFrame(rows)
 
 
 def sequence_paths(roots: Iterable[str | os.PathLike]) -> list[Path]:

@@ -195,3 +195,14 @@ def test_compare_models_side_by_side(tmp_path):
     assert set(fits.fitted_model) == {"kannala_brandt", "double_sphere"}
     assert (fits.rms_px < 1.0).all()
     assert out.exists() and "base64" in out.read_text()
+
+
+def test_additions_table_has_each_addition_and_the_defaults(sequences):
+    from fisheyemotion.eval.evaluate import ADDITIONS, additions_table
+
+    table = additions_table(sequences[:1], ["dis"], workers=1, progress=False)
+    assert list(table.variant) == list(ADDITIONS) + ["all (defaults)"]
+    assert {"crossing det", "false positives cov", "iou"} <= set(table.columns)
+    paper = table.set_index("variant").loc["paper"]
+    defaults = table.set_index("variant").loc["all (defaults)"]
+    assert defaults["false positives cov"] <= paper["false positives cov"]
