@@ -13,7 +13,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from fisheyemotion import calib, synth
-from fisheyemotion.cli import REPO_DATA, CliError, calibration_table
+from fisheyemotion.cli import REPO_DATA, CliError, calib_files, calibration_table
 from fisheyemotion.params import Params
 
 from .evaluate import evaluate, sequence_paths
@@ -92,10 +92,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 def cmd_demo(args: argparse.Namespace) -> int:
     data = Path(args.data)
-    calibs = sorted(p for p in (data / "calib").iterdir()
-                    if p.suffix in {".yaml", ".yml", ".json", ".xml", ".txt"})
     print(f"Bundled calibrations in {data / 'calib'}:")
-    print(calibration_table(calibs).to_string(index=False))
+    print(calibration_table(calib_files(data)).to_string(index=False))
     out = Path(args.out)
     camera = calib.load(data / "calib" / DEMO_CAMERA)
     names = args.scenarios.split(",") if args.scenarios else synth.list_scenarios()

@@ -48,7 +48,8 @@ def calibration_table(paths: Sequence[Path]) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _calib_files(data: Path) -> list[Path]:
+def calib_files(data: Path) -> list[Path]:
+    """Calibration files in ``data/calib``."""
     return sorted(p for p in (data / "calib").iterdir()
                   if p.suffix in {".yaml", ".yml", ".json", ".xml", ".txt"})
 

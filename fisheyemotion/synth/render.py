@@ -59,17 +59,6 @@ class FrameTruth:
     pose: NDArray[np.float64]
 
 
-class _BodyOnly:
-    """A scene holding only the ego body, in the vehicle frame (for the one-off body cast)."""
-
-    def __init__(self, body: Box, pose: NDArray) -> None:
-        self.boxes = (body,)
-        self._pose = pose
-
-    def ego_body(self) -> None:
-        return None
-
-
 @dataclass(frozen=True, eq=False)
 class Hits:
     """Nearest intersection per ray: ``obj`` (-1 sky, 0 road, i + 1 for ``boxes[i]``), distance
@@ -121,8 +110,6 @@ class Renderer:
 
     # ---- geometry -----------------------------------------------------------------------
     def _boxes_at(self, t: float) -> list[tuple[Box, np.ndarray]]:
-        if isinstance(self.scenario, _BodyOnly):
-            return [(self.scenario.boxes[0], self.scenario._pose)]
         out = [(b, b.world_from_box(t)) for b in self.scenario.boxes]
         body = self.scenario.ego_body()
         if body is not None:  # rigidly attached to the vehicle
@@ -141,6 +128,12 @@ class Renderer:
         ``body``: precomputed ``(t, local, face)`` of the ego vehicle's body for these rays
         (rigid with the camera, so the same in every frame); cast here when None.
         """
+        return self._cast(origin, dirs, self._boxes_at(time), body=body,
+                          n_scene=len(self.scenario.boxes))
+
+    def _cast(self, origin: NDArray, dirs: NDArray, boxes: list[tuple[Box, NDArray]], *,
+              body: tuple[NDArray, NDArray, NDArray] | None, n_scene: int) -> Hits:
+        """Road plane and ``boxes`` (box, world_from_box); ``body`` stands for ``boxes[n_scene]``."""
         n = dirs.shape[0]
         best_t = np.full(n, np.inf)
         obj = np.full(n, SKY, dtype=np.int64)
@@ -150,8 +143,6 @@ class Renderer:
             t_road = np.where(dirs[:, 2] < -1e-12, -origin[2] / dirs[:, 2], np.inf)
         hit = t_road < best_t
         best_t[hit], obj[hit] = t_road[hit], ROAD
-        boxes = self._boxes_at(time)
-        n_scene = len(self.scenario.boxes)
         cast = boxes if body is None else boxes[:n_scene]
         if body is not None and len(boxes) > n_scene:
             t_b, local_b, face_b = body
@@ -204,9 +195,8 @@ class Renderer:
             return None
         vehicle_from_cam = self.scenario.camera.vehicle_from_cam()
         pose = body.world_from_box(0.0)  # in the vehicle frame
-        sub = Renderer.__new__(Renderer)
-        sub.scenario = _BodyOnly(body, pose)
-        hits = sub.intersect(vehicle_from_cam[:3, 3], rays_cam @ vehicle_from_cam[:3, :3].T, 0.0)
+        hits = self._cast(vehicle_from_cam[:3, 3], rays_cam @ vehicle_from_cam[:3, :3].T,
+                          [(body, pose)], body=None, n_scene=1)
         t = np.where(hits.obj == 1, hits.t, np.inf)
         return t, hits.local, hits.face
 
