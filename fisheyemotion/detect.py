@@ -19,9 +19,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .calib.base import CameraModel
+from .calib.transforms import check_rigid
 from .constraints import ConstraintResult, constraints
 from .flow import FlowEstimator, grid_average, grid_centres, grid_upsample
-from .frames import check_pose, to_gray
+from .frames import to_gray
 from .params import Params
 from .prior import EgoFlowPrior
 from .road import Road
@@ -171,7 +172,7 @@ class MotionDetector:
         """
         g0 = to_gray(prev, "prev", size=self.size)
         g1 = to_gray(curr, "curr", size=self.size)
-        t0, t1 = check_pose(pose0, "pose0"), check_pose(pose1, "pose1")
+        t0, t1 = check_rigid(pose0, "pose0"), check_rigid(pose1, "pose1")
         return self._detect_gray(g0, g1, t0, t1)
 
     def apply(self, frame: NDArray[np.uint8], pose: NDArray) -> Detection | None:
@@ -181,7 +182,7 @@ class MotionDetector:
         and poses are kept.
         """
         gray = to_gray(frame, "frame", size=self.size)
-        t = check_pose(pose, "pose")
+        t = check_rigid(pose, "pose")
         full = len(self._history) == self._history.maxlen
         prev, prev_pose = self._history[0] if full else (None, None)
         self._history.append((gray, t))
@@ -212,7 +213,7 @@ class MotionDetector:
             a = np.asarray(a)
             if a.shape != shape or a.dtype.kind != "f":
                 raise ValueError(f"{name}: expected a float array of shape {shape}, got {a.dtype} {a.shape}")
-        t0, t1 = check_pose(pose0, "pose0"), check_pose(pose1, "pose1")
+        t0, t1 = check_rigid(pose0, "pose0"), check_rigid(pose1, "pose1")
         gray = None if prev is None else to_gray(prev, "prev", size=self.size)
         return self._from_flow(np.asarray(flow, np.float32), t0, t1,
                                None if backward is None else np.asarray(backward, np.float32),

@@ -1,12 +1,10 @@
-"""Checks on frames and poses as callers hand them over (cv2 images, 4x4 matrices)."""
+"""Checks on frames as callers hand them over (cv2 images)."""
 
 from __future__ import annotations
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
-
-from .calib.transforms import check_rigid
 
 
 def to_gray(frame: object, name: str, *, size: tuple[int, int] | None = None) -> NDArray[np.uint8]:
@@ -39,8 +37,3 @@ def to_gray(frame: object, name: str, *, size: tuple[int, int] | None = None) ->
             f"got {gray.shape[1]}x{gray.shape[0]}"
         )
     return np.ascontiguousarray(gray)
-
-
-def check_pose(pose: object, name: str) -> NDArray[np.float64]:
-    """A 4x4 rigid ``world_from_cam`` matrix, or ValueError naming ``name``."""
-    return check_rigid(pose, name)
