@@ -262,15 +262,16 @@ class MotionDetector:
         gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
         return grid_average(cv2.magnitude(gx, gy), self.params.grid) >= self.params.min_texture
 
-    def _consistent_cells(self, flow, backward) -> NDArray[np.bool_]:
-        """Cells whose mean forward-backward error is within tolerance."""
+    def _consistent_cells(self, flow, cell_flow, backward) -> NDArray[np.bool_]:
+        """Cells whose mean forward-backward error is within tolerance (``cell_flow``: the
+        cells' mean flow, already computed by the caller)."""
         xx, yy = self._coords()
         back_at = cv2.remap(backward, xx + flow[..., 0], yy + flow[..., 1], cv2.INTER_LINEAR,
                             borderMode=cv2.BORDER_REPLICATE)
         error = np.linalg.norm(flow + back_at, axis=-1)
         p = self.params
         cell_error = grid_average(error, p.grid)
-        cell_mag = np.linalg.norm(grid_average(flow, p.grid), axis=-1)
+        cell_mag = np.linalg.norm(cell_flow, axis=-1)
         return cell_error <= p.fb_tolerance + p.fb_relative * cell_mag
 
     def _from_flow(self, flow, t0, t1, backward=None, gray=None, *, stream=False) -> Detection:
@@ -280,7 +281,7 @@ class MotionDetector:
         res = constraints(self._rays0, rays1, t0, t1, road=self.road, params=p)
         valid = res.valid & valid1 & self._cell_valid
         if p.fb_check and backward is not None:
-            valid &= self._consistent_cells(flow, backward)
+            valid &= self._consistent_cells(flow, cell_flow, backward)
         if p.min_texture > 0 and gray is not None:
             valid &= self._textured_cells(gray)
         return self._assemble(flow, cell_flow, res, valid, stream=stream)
