@@ -22,9 +22,11 @@ How to add a model (four steps)
 -------------------------------
 1. Create ``calib/models/<name>.py`` with a frozen, keyword-only dataclass deriving from
    :class:`CameraModel`; fields: intrinsics in canonical order, then ``width`` and ``height``.
-2. Implement ``_radius(theta)`` and ``_radius_derivative(theta)``; state the formula and its
-   valid domain in the class docstring. Override ``_lift`` if the inverse has a closed form,
-   and ``_check_model`` for parameter ranges.
+2. State the formula and its valid domain in the class docstring, then give the radial
+   function: either ``_radius_coefficients()`` when ``r(theta)`` is a polynomial in ``theta``
+   (projection, the derivative and a fused numba unprojection follow), or ``_radius(theta)``,
+   ``_radius_derivative(theta)`` and a closed-form inverse ``_lift``. Override ``_check_model``
+   for parameter ranges.
 3. Decorate the class with ``@register`` (``calib/registry.py``) under its canonical ``name``.
 4. Add it to ``tests/test_camera_models.py::MODEL_SAMPLES``; the generic round-trip and Jacobian
    tests then run on it. Add reader/writer support in ``calib/readers`` if a file format names it.
@@ -40,10 +42,10 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from . import _polynomial_kernel
 from ._arrays import as_points, check_real, check_size
 
 _GRID_SAMPLES = 8192
-_NEWTON_ITERATIONS = 60
 _TABLE_SAMPLES = 4097
 
 
@@ -66,13 +68,23 @@ class CameraModel:
     param_names: ClassVar[tuple[str, ...]] = ()
 
     # ---- subclass hooks -------------------------------------------------------------------
+    def _radius_coefficients(self) -> tuple[float, ...] | None:
+        """``(c0, c1, ...)`` when ``r(theta) = sum_k c_k theta**k``; ``None`` otherwise.
+
+        A polynomial model needs nothing else: ``_radius``, ``_radius_derivative`` and the
+        unprojection (a fused numba solve, ``calib/_polynomial_kernel.py``) follow from it.
+        """
+        return None
+
     def _radius(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
         """Normalised radius ``r(theta)``."""
-        raise NotImplementedError
+        c, _ = self._polynomial
+        return np.polynomial.polynomial.polyval(theta, c)
 
     def _radius_derivative(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
         """``dr/dtheta``."""
-        raise NotImplementedError
+        _, dc = self._polynomial
+        return np.polynomial.polynomial.polyval(theta, dc)
 
     def _check_model(self) -> None:
         """Raise ValueError naming the parameter when a model-specific range is violated."""
@@ -84,12 +96,13 @@ class CameraModel:
     def _lift(
         self, mx: NDArray[np.float64], my: NDArray[np.float64], r: NDArray[np.float64]
     ) -> NDArray[np.float64]:
-        """Unit rays for normalised points with radius ``r <= r_max``; Newton by default."""
-        theta = self._theta_from_radius(r)
-        s = np.sin(theta)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            scale = np.where(r > 0, s / np.where(r > 0, r, 1.0), 0.0)
-        return np.stack([scale * mx, scale * my, np.cos(theta)], axis=-1)
+        """Rays (any positive length) for normalised points with radius ``r <= r_max``.
+
+        Closed-form models override this; polynomial models never reach it.
+        """
+        raise NotImplementedError(
+            f"{type(self).__name__}: give _radius_coefficients or a closed-form _lift"
+        )
 
     # ---- construction ----------------------------------------------------------------------
     def __post_init__(self) -> None:
@@ -195,6 +208,8 @@ class CameraModel:
             False for non-finite pixels and pixels beyond the model's domain ``r > r_max``.
         """
         q = as_points(pixels, 2, "pixels")
+        if self._radius_coefficients() is not None:
+            return self._unproject_polynomial(q)
         fx, fy, cx, cy = self._affine()
         mx = (q[..., 0] - cx) / fx
         my = (q[..., 1] - cy) / fy
@@ -247,59 +262,35 @@ class CameraModel:
         jac[~valid] = np.nan
         return pixels, jac, valid
 
-    # ---- inverse of the radial function -----------------------------------------------------
+    # ---- polynomial models ------------------------------------------------------------------
     @cached_property
-    def _inverse_table(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        theta = np.linspace(0.0, self.theta_max, _TABLE_SAMPLES)
-        return self._radius(theta), theta
+    def _polynomial(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        coeffs = self._radius_coefficients()
+        if coeffs is None:
+            raise NotImplementedError(
+                f"{type(self).__name__}: give _radius_coefficients or _radius/_radius_derivative"
+            )
+        c = np.asarray(coeffs, dtype=np.float64)
+        return c, np.polynomial.polynomial.polyder(c) if len(c) > 1 else np.zeros(1)
 
-    def _theta_from_radius(self, r: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Solve ``r(theta) = r`` on ``[0, theta_max]``.
+    @cached_property
+    def _theta_table(self) -> NDArray[np.float64]:
+        c, dc = self._polynomial
+        return _polynomial_kernel.theta_table(c, dc, self.theta_max, self.radius_max, _TABLE_SAMPLES)
 
-        A table lookup (``r(theta)`` is strictly increasing there) gives a start within about
-        1e-7 rad; two Newton steps take it to machine precision. Elements whose residual is
-        still large (only near the fold at ``theta_max``, where ``r'`` vanishes) are finished by
-        a safeguarded Newton/bisection solve that keeps a bracket and always converges.
-        """
-        shape = np.shape(r)
-        r = np.ravel(r)
-        tmax = self.theta_max
-        table_r, table_theta = self._inverse_table
-        theta = np.interp(r, table_r, table_theta)
-        for _ in range(2):
-            d = self._radius_derivative(theta)
-            with np.errstate(all="ignore"):
-                theta = theta - np.where(d > 0, (self._radius(theta) - r) / d, 0.0)
-            np.clip(theta, 0.0, tmax, out=theta)
-        residual = np.abs(self._radius(theta) - r)
-        slow = ~(residual <= 1e-13 * np.maximum(r, 1.0))
-        if slow.any():
-            theta[slow] = self._theta_from_radius_bracketed(r[slow])
-        return theta.reshape(shape)
-
-    def _theta_from_radius_bracketed(self, r: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Safeguarded, vectorised Newton: a bracket ``[lo, hi]`` per element, bisection when a
-        Newton step leaves it; converges for any input in ``[0, r_max]``."""
-        tmax = self.theta_max
-        lo = np.zeros_like(r)
-        hi = np.full_like(r, tmax)
-        dr0 = float(self._radius_derivative(np.zeros(1))[0])
-        theta = np.clip(r / dr0, 0.0, tmax)
-        for _ in range(_NEWTON_ITERATIONS):
-            f = self._radius(theta) - r
-            lo = np.where(f <= 0, theta, lo)
-            hi = np.where(f > 0, theta, hi)
-            d = self._radius_derivative(theta)
-            with np.errstate(all="ignore"):
-                step = np.where(d > 0, f / d, np.inf)
-            new = theta - step
-            bad = ~((new >= lo) & (new <= hi))
-            new = np.where(bad, 0.5 * (lo + hi), new)
-            done = np.abs(new - theta) <= 1e-15 * np.maximum(theta, 1.0)
-            theta = new
-            if done.all():
-                break
-        return theta
+    def _unproject_polynomial(
+        self, q: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        c, dc = self._polynomial
+        flat = np.ascontiguousarray(q.reshape(-1, 2))
+        rays = np.empty((len(flat), 3))
+        valid = np.empty(len(flat), dtype=bool)
+        fx, fy, cx, cy = self._affine()
+        _polynomial_kernel.unproject_polynomial(
+            flat, fx, fy, cx, cy, c, dc, self.theta_max, self.radius_max, self._theta_table,
+            rays, valid,
+        )
+        return rays.reshape(q.shape[:-1] + (3,)), valid.reshape(q.shape[:-1])
 
     # ---- image-level helpers ---------------------------------------------------------------
     @cached_property

@@ -5,9 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-import numpy as np
-from numpy.typing import NDArray
-
 from ..base import CameraModel
 from ..registry import register
 
@@ -25,7 +22,7 @@ class KannalaBrandt(CameraModel):
     k_4\theta^8)`, :math:`u = f_x d(\theta)\, x/\sqrt{x^2+y^2} + c_x` (same for v).
 
     Unprojection: safeguarded Newton solve of :math:`d(\theta) = r_d` on
-    :math:`[0, \theta_{max}]`.
+    :math:`[0, \theta_{max}]` (the polynomial models' numba kernel).
 
     Valid domain: :math:`\theta \le \theta_{max}`, the first angle where :math:`d'(\theta) = 0`
     (or :math:`\pi`); pixels with :math:`r_d \le d(\theta_{max})`.
@@ -45,10 +42,5 @@ class KannalaBrandt(CameraModel):
     width: int
     height: int
 
-    def _radius(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
-        t2 = theta * theta
-        return theta * (1.0 + t2 * (self.k1 + t2 * (self.k2 + t2 * (self.k3 + t2 * self.k4))))
-
-    def _radius_derivative(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
-        t2 = theta * theta
-        return 1.0 + t2 * (3 * self.k1 + t2 * (5 * self.k2 + t2 * (7 * self.k3 + t2 * 9 * self.k4)))
+    def _radius_coefficients(self) -> tuple[float, ...]:
+        return (0.0, 1.0, 0.0, self.k1, 0.0, self.k2, 0.0, self.k3, 0.0, self.k4)

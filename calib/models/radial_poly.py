@@ -5,9 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-import numpy as np
-from numpy.typing import NDArray
-
 from ..base import CameraModel
 from ..registry import register
 
@@ -58,8 +55,5 @@ class RadialPoly(CameraModel):
             self.height / 2 + self.cy_offset - 0.5,
         )
 
-    def _radius(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
-        return theta * (self.k1 + theta * (self.k2 + theta * (self.k3 + theta * self.k4)))
-
-    def _radius_derivative(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
-        return self.k1 + theta * (2 * self.k2 + theta * (3 * self.k3 + theta * 4 * self.k4))
+    def _radius_coefficients(self) -> tuple[float, ...]:
+        return (0.0, self.k1, self.k2, self.k3, self.k4)
