@@ -1,4 +1,4 @@
-"""The constraint engine: vectorised numpy vs a naive per-point Python loop, in rays per second."""
+"""The constraint engine (numba) vs naive per-point Python loops (math and numpy), in rays per second."""
 
 from __future__ import annotations
 
@@ -42,18 +42,21 @@ def test_engine_307k(benchmark):
 
 
 @pytest.mark.benchmark(group="engine-12k")
-def test_naive_loop_12k(benchmark):
+@pytest.mark.parametrize("ops", ["math", "numpy"])
+def test_naive_loop_12k(benchmark, ops):
     r0, r1, p0, p1 = _rays(12_288)
     lists = (r0.tolist(), r1.tolist(), p0.tolist(), p1.tolist())
-    out = benchmark.pedantic(naive_likelihood, args=lists, rounds=3, iterations=1)
+    out = benchmark.pedantic(naive_likelihood, args=lists, kwargs={"ops": ops}, rounds=3,
+                             iterations=1)
     benchmark.extra_info["rays"] = len(r0)
     ours = fm.constraints(r0, r1, p0, p1).likelihood
     np.testing.assert_allclose(np.array(out), ours, rtol=1e-9, atol=1e-12)
 
 
 @pytest.mark.benchmark(group="engine-307k")
-def test_naive_loop_307k(benchmark):
+@pytest.mark.parametrize("ops", ["math", "numpy"])
+def test_naive_loop_307k(benchmark, ops):
     r0, r1, p0, p1 = _rays(307_200)
     lists = (r0.tolist(), r1.tolist(), p0.tolist(), p1.tolist())
-    benchmark.pedantic(naive_likelihood, args=lists, rounds=1, iterations=1)
+    benchmark.pedantic(naive_likelihood, args=lists, kwargs={"ops": ops}, rounds=1, iterations=1)
     benchmark.extra_info["rays"] = len(r0)

@@ -14,9 +14,13 @@ import numba
 import numpy as np
 
 _DEGENERATE = 1e-12
+_UNIT_TOLERANCE = 4e-16
 
 
-@numba.njit(cache=True, nogil=True)
+# error_model="numpy": IEEE division (no zero checks in the loop); fastmath only contracts to FMA,
+# ignores the sign of zero and uses reciprocals -- never assumes away NaN or infinity, which the
+# validity tests below rely on.
+@numba.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "nsz", "arcp"})
 def constraint_kernel(p_cam, q_cam, r0, r1, e, b, down, eta, lambda_h, lambda_p, adaptive,
                       lambda_p_ratio, both_views, epipole_margin, horizon_margin, weights, out,
                       valid):
@@ -37,10 +41,16 @@ def constraint_kernel(p_cam, q_cam, r0, r1, e, b, down, eta, lambda_h, lambda_p,
         qx = r1[0, 0] * q_cam[i, 0] + r1[0, 1] * q_cam[i, 1] + r1[0, 2] * q_cam[i, 2]
         qy = r1[1, 0] * q_cam[i, 0] + r1[1, 1] * q_cam[i, 1] + r1[1, 2] * q_cam[i, 2]
         qz = r1[2, 0] * q_cam[i, 0] + r1[2, 1] * q_cam[i, 1] + r1[2, 2] * q_cam[i, 2]
-        pn = 1.0 / math.sqrt(px * px + py * py + pz * pz)
-        qn_ = 1.0 / math.sqrt(qx * qx + qy * qy + qz * qz)
-        px, py, pz = px * pn, py * pn, pz * pn
-        qx, qy, qz = qx * qn_, qy * qn_, qz * qn_
+        # g(u) gives unit rays (and rotations keep them so): normalise only when the squared
+        # norm is off by more than rounding; normalising then would change the ray by < 1 ulp.
+        pn2 = px * px + py * py + pz * pz
+        if abs(pn2 - 1.0) > _UNIT_TOLERANCE:
+            pn = 1.0 / math.sqrt(pn2)
+            px, py, pz = px * pn, py * pn, pz * pn
+        qn2 = qx * qx + qy * qy + qz * qz
+        if abs(qn2 - 1.0) > _UNIT_TOLERANCE:
+            qn_ = 1.0 / math.sqrt(qn2)
+            qx, qy, qz = qx * qn_, qy * qn_, qz * qn_
         # Epipolar plane normal n' = p x e' / |p x e'|.
         nx = py * e[2] - pz * e[1]
         ny = pz * e[0] - px * e[2]
