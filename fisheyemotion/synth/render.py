@@ -1,9 +1,10 @@
-"""Vectorised ray casting of road scenes through any camera model, with exact ground truth.
+"""Ray casting of road scenes through any camera model, with exact ground truth.
 
 Every pixel's ray comes from ``camera.unproject`` (the same g(u) the detector uses), is moved
 to the world with the camera pose and intersected with the road plane ``z = 0`` and with
-textured boxes. Colour is averaged over ``supersample x supersample`` rays per pixel; the ground
-truth (ids, range, flow) is exact at pixel centres.
+textured boxes (one numba pass per ray, ``_raycast.py``). Colour is averaged over
+``supersample x supersample`` rays per pixel; the ground truth (ids, range, flow) is exact at
+pixel centres.
 """
 
 from __future__ import annotations
@@ -15,16 +16,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..calib.base import CameraModel, pixel_grid
+from . import _raycast
 from .scenario import EGO_ID, Box, Scenario
-from .textures import sample
+from .textures import TEXTURES, packed
 
-SKY, ROAD = -1, 0
 _ROAD_TEXEL = 0.005
 _BOX_TEXEL = 0.01
 _MARK_WIDTH = 0.15
 _DASH, _GAP = 3.0, 6.0
 # Brightness per face: local +x, -x, +y, -y, +z (top), -z
-_FACE_SHADE = np.array([1.0, 0.8, 0.9, 0.7, 1.1, 0.5], dtype=np.float32)
+_FACE_SHADE = np.array([1.0, 0.8, 0.9, 0.7, 1.1, 0.5])
+_SKY = np.array([[235, 205, 175], [200, 140, 90]], dtype=np.float64)  # BGR at the horizon, zenith
+_NO_HITS = (np.zeros(0), np.zeros((0, 3)), np.zeros(0, np.int64))
 
 
 @dataclass(frozen=True, eq=False)
@@ -100,13 +103,25 @@ class Renderer:
         offsets = (np.arange(supersample) + 0.5) / supersample - 0.5
         ou, ov = np.meshgrid(offsets, offsets)
         sub = pixel_grid(w, h)[:, :, None, :] + np.stack([ou.ravel(), ov.ravel()], -1)
-        self._sub_rays, self._sub_valid = camera.unproject(sub)  # (H, W, ss*ss, 3)
+        sub_rays, sub_valid = camera.unproject(sub)  # (H, W, ss*ss, 3)
+        self._sub_rays = np.ascontiguousarray(sub_rays[sub_valid])
+        self._sub_pixel = np.flatnonzero(sub_valid) // (supersample * supersample)
+        self._centre_rays = np.ascontiguousarray(self._rays[self._valid])
+        self._centre_pixels = pixel_grid(w, h)[self._valid]
         # Angle between neighbouring samples, at the image centre (1 / focal length).
         fx, fy, _, _ = camera._affine()
         self._sample_angle = 1.0 / (max(fx, fy) * supersample)
         self._prev_hits: tuple[int, Hits] | None = None
-        self._body_sub = self._body_hits(self._sub_rays[self._sub_valid])
-        self._body_centre = self._body_hits(self._rays[self._valid])
+        boxes = self._all_boxes
+        self._box_texture = np.array([TEXTURES.index(b.texture) for b in boxes], np.int64)
+        spec = scenario.road
+        self._half_road = spec.lanes * spec.lane_width / 2
+        lines = [(-self._half_road, False), (self._half_road, False)] + [
+            (-self._half_road + k * spec.lane_width, True) for k in range(1, spec.lanes)]
+        self._lines = np.array([o for o, _ in lines], float)
+        self._dashed = np.array([d for _, d in lines], bool)
+        self._body_sub = self._body_hits(self._sub_rays)
+        self._body_centre = self._body_hits(self._centre_rays)
 
     # ---- geometry -----------------------------------------------------------------------
     def _boxes_at(self, t: float) -> list[tuple[Box, np.ndarray]]:
@@ -128,65 +143,53 @@ class Renderer:
         ``body``: precomputed ``(t, local, face)`` of the ego vehicle's body for these rays
         (rigid with the camera, so the same in every frame); cast here when None.
         """
-        return self._cast(origin, dirs, self._boxes_at(time), body=body,
-                          n_scene=len(self.scenario.boxes))
+        return self._cast(origin, np.eye(3), dirs, self._boxes_at(time), body=body)
 
-    def _cast(self, origin: NDArray, dirs: NDArray, boxes: list[tuple[Box, NDArray]], *,
-              body: tuple[NDArray, NDArray, NDArray] | None, n_scene: int) -> Hits:
-        """Road plane and ``boxes`` (box, world_from_box); ``body`` stands for ``boxes[n_scene]``."""
-        n = dirs.shape[0]
-        best_t = np.full(n, np.inf)
-        obj = np.full(n, SKY, dtype=np.int64)
-        face = np.full(n, -1, dtype=np.int64)
-        local = dirs.copy()
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t_road = np.where(dirs[:, 2] < -1e-12, -origin[2] / dirs[:, 2], np.inf)
-        hit = t_road < best_t
-        best_t[hit], obj[hit] = t_road[hit], ROAD
-        cast = boxes if body is None else boxes[:n_scene]
-        if body is not None and len(boxes) > n_scene:
-            t_b, local_b, face_b = body
-            sel = np.flatnonzero(t_b < best_t)
-            best_t[sel], obj[sel] = t_b[sel], n_scene + 1
-            local[sel], face[sel] = local_b[sel], face_b[sel]
-        if cast:
-            # Cone cull of every box at once: rays within the angle its bounding sphere subtends.
-            centres = np.array([p[:3, 3] for _, p in cast]) - origin
-            dist = np.linalg.norm(centres, axis=1)
-            radius = np.array([0.5 * float(np.linalg.norm(b.size)) for b, _ in cast])
-            with np.errstate(invalid="ignore"):
-                cos_cone = np.where(dist > radius, np.sqrt(np.maximum(dist**2 - radius**2, 0)), -np.inf)
-            near = dirs @ centres.T > cos_cone  # d . oc > |oc| cos(alpha)
-        for i, (box, pose) in enumerate(cast):
-            idx = np.flatnonzero(near[:, i])
-            if idx.size == 0:
-                continue
-            rot, centre = pose[:3, :3], pose[:3, 3]
-            half = np.array(box.size) / 2
-            o_l = rot.T @ (origin - centre)
-            d_l = dirs[idx] @ rot
-            with np.errstate(divide="ignore", invalid="ignore"):
-                inv = 1.0 / d_l
-                t1 = (-half - o_l) * inv
-                t2 = (half - o_l) * inv
-            t_near = np.fmin(t1, t2)
-            t_far = np.fmax(t1, t2)
-            t_in = np.fmax(np.fmax(t_near[:, 0], t_near[:, 1]), t_near[:, 2])
-            t_out = np.fmin(np.fmin(t_far[:, 0], t_far[:, 1]), t_far[:, 2])
-            ok = (t_in <= t_out) & (t_in > 0) & (t_in < best_t[idx])
-            sel = idx[ok]
-            if sel.size == 0:
-                continue
-            t_hit = t_in[ok]
-            axis = np.argmax(np.where(np.isnan(t_near[ok]), -np.inf, t_near[ok]), axis=1)
-            p_l = o_l + t_hit[:, None] * d_l[ok]
-            sign = (p_l[np.arange(sel.size), axis] > 0).astype(np.int64)
-            best_t[sel], obj[sel] = t_hit, i + 1
-            local[sel] = p_l
-            face[sel] = axis * 2 + (1 - sign)
-        road = np.flatnonzero(obj == ROAD)
-        local[road] = origin + best_t[road, None] * dirs[road]
-        return Hits(obj, best_t, local, face, tuple(p[:3, :3] for _, p in boxes))
+    def _cast(self, origin: NDArray, rot: NDArray, rays: NDArray,
+              boxes: list[tuple[Box, NDArray]], *,
+              body: tuple[NDArray, NDArray, NDArray] | None) -> Hits:
+        """Hits of rays ``rot @ rays[i]`` from ``origin`` with the road and ``boxes`` (box,
+        world_from_box); ``body`` stands for the last box when given."""
+        n = len(rays)
+        obj = np.empty(n, np.int64)
+        t = np.empty(n)
+        local = np.empty((n, 3))
+        face = np.empty(n, np.int64)
+        n_cast = len(boxes) - (body is not None)
+        _raycast.cast(np.asarray(origin, float), np.ascontiguousarray(rot),
+                      np.ascontiguousarray(rays, dtype=float), *self._box_arrays(origin, boxes),
+                      n_cast, *self._precomputed(body), obj, t, local, face)
+        return Hits(obj, t, local, face, tuple(p[:3, :3] for _, p in boxes))
+
+    def _box_arrays(self, origin: NDArray, boxes: list[tuple[Box, NDArray]]):
+        """Per box: world rotation, the origin in the box frame, half sizes, and the cone (unit
+        axis and cosine of the half-angle) its bounding sphere subtends from ``origin``."""
+        k = len(boxes)
+        rots = np.empty((k, 3, 3))
+        box_origin = np.empty((k, 3))
+        halves = np.empty((k, 3))
+        axis_dir = np.zeros((k, 3))
+        cone_cos = np.full(k, -2.0)  # origin inside the sphere: never culled
+        for j, (box, pose) in enumerate(boxes):
+            rots[j] = pose[:3, :3]
+            offset = pose[:3, 3] - origin
+            box_origin[j] = -offset @ pose[:3, :3]
+            halves[j] = np.array(box.size, float) / 2
+            dist = float(np.linalg.norm(offset))
+            radius = float(np.linalg.norm(halves[j]))
+            if dist > radius:
+                axis_dir[j] = offset / dist
+                cone_cos[j] = np.sqrt(dist**2 - radius**2) / dist
+        return rots, box_origin, halves, axis_dir, cone_cos
+
+    def _precomputed(self, body):
+        """``(pre_t, pre_obj, pre_local, pre_face)`` kernel arguments for the body's hits."""
+        pre_t, pre_local, pre_face = _NO_HITS if body is None else body
+        return pre_t, len(self.scenario.boxes) + 1, pre_local, pre_face
+
+    @staticmethod
+    def _box_centres(boxes: list[tuple[Box, NDArray]]) -> NDArray[np.float64]:
+        return np.array([p[:3, 3] for _, p in boxes], float).reshape(-1, 3)
 
     def _body_hits(self, rays_cam: NDArray) -> tuple[NDArray, NDArray, NDArray] | None:
         """The ego body's hits for camera-frame rays (the same in every frame)."""
@@ -195,56 +198,10 @@ class Renderer:
             return None
         vehicle_from_cam = self.scenario.camera.vehicle_from_cam()
         pose = body.world_from_box(0.0)  # in the vehicle frame
-        hits = self._cast(vehicle_from_cam[:3, 3], rays_cam @ vehicle_from_cam[:3, :3].T,
-                          [(body, pose)], body=None, n_scene=1)
+        hits = self._cast(vehicle_from_cam[:3, 3], vehicle_from_cam[:3, :3], rays_cam,
+                          [(body, pose)], body=None)
         t = np.where(hits.obj == 1, hits.t, np.inf)
         return t, hits.local, hits.face
-
-    # ---- shading ------------------------------------------------------------------------
-    def _footprint(self, t: NDArray, cos_incidence: NDArray) -> NDArray[np.float64]:
-        """Metres of surface one sample covers: distance x sample angle / cos(incidence)."""
-        return t * self._sample_angle / np.maximum(np.abs(cos_incidence), 0.05)
-
-    def _shade(self, hits: Hits, dirs: NDArray) -> NDArray[np.float32]:
-        colour = np.empty((hits.obj.size, 3), dtype=np.float32)
-        sky = hits.obj == SKY
-        el = np.clip(dirs[sky, 2], 0, 1)[:, None]
-        colour[sky] = (np.array([235, 205, 175], np.float32) * (1 - el)
-                       + np.array([200, 140, 90], np.float32) * el)
-        road = hits.obj == ROAD
-        if road.any():
-            colour[road] = self._road_colour(hits.local[road],
-                                             self._footprint(hits.t[road], dirs[road, 2]))
-        for i, box in enumerate(self._all_boxes):
-            sel = np.flatnonzero(hits.obj == i + 1)
-            if sel.size == 0:
-                continue
-            p, f = hits.local[sel], hits.face[sel]
-            axis = f // 2
-            normal_cos = (dirs[sel] @ hits.rotations[i])[np.arange(axis.size), axis]
-            footprint = self._footprint(hits.t[sel], normal_cos)
-            # Face coordinates: horizontal along the face, vertical up (top: x, y).
-            u = np.where(axis == 0, p[:, 1], p[:, 0]) + 7.3 * i
-            v = np.where(axis == 2, p[:, 1], p[:, 2])
-            colour[sel] = sample(box.texture, u, v, _BOX_TEXEL, footprint) * _FACE_SHADE[f][:, None]
-        return colour
-
-    def _road_colour(self, points: NDArray, footprint: NDArray) -> NDArray[np.float32]:
-        x, y = points[:, 0], points[:, 1]
-        spec = self.scenario.road
-        half = spec.lanes * spec.lane_width / 2
-        colour = sample("gravel", x, y, _ROAD_TEXEL, footprint)
-        verge = np.abs(y) > half + _MARK_WIDTH
-        if verge.any():
-            colour[verge] = sample("grass", x[verge], y[verge], _ROAD_TEXEL * 2, footprint[verge])
-        lines = [(-half, False), (half, False)] + [
-            (-half + k * spec.lane_width, True) for k in range(1, spec.lanes)]
-        for offset, dashed in lines:
-            mark = np.abs(y - offset) < _MARK_WIDTH / 2
-            if dashed:
-                mark &= np.mod(x, _DASH + _GAP) < _DASH
-            colour[mark] = colour[mark] * 0.25 + np.float32(200)
-        return colour
 
     # ---- frames -------------------------------------------------------------------------
     def hits(self, index: int) -> Hits:
@@ -252,8 +209,8 @@ class Renderer:
         if self._prev_hits is not None and self._prev_hits[0] == index:
             return self._prev_hits[1]
         pose = self.scenario.world_from_cam(index)
-        dirs = self._rays[self._valid] @ pose[:3, :3].T
-        return self.intersect(pose[:3, 3], dirs, self.scenario.time(index), body=self._body_centre)
+        return self._cast(pose[:3, 3], pose[:3, :3], self._centre_rays,
+                          self._boxes_at(self.scenario.time(index)), body=self._body_centre)
 
     def roi(self) -> NDArray[np.uint8]:
         """255 where the camera sees the scene, 0 where it sees its own vehicle or nothing."""
@@ -269,13 +226,17 @@ class Renderer:
         h, w = cam.height, cam.width
         pose = sc.world_from_cam(index)
         time = sc.time(index)
-        # Colour: supersampled.
-        valid_sub = self._sub_valid
-        dirs = self._sub_rays[valid_sub] @ pose[:3, :3].T
-        colour = np.zeros(valid_sub.shape + (3,), dtype=np.float32)
-        colour[valid_sub] = self._shade(
-            self.intersect(pose[:3, 3], dirs, time, body=self._body_sub), dirs)
-        image = colour.mean(axis=2)
+        # Colour: mean of the supersamples (samples outside the camera's domain count as black).
+        boxes = self._boxes_at(time)
+        acc = np.zeros((h * w, 3))
+        hits = self._cast(pose[:3, 3], pose[:3, :3], self._sub_rays, boxes, body=self._body_sub)
+        _raycast.shade(
+            np.ascontiguousarray(pose[:3, :3]), self._sub_rays, hits.obj, hits.t, hits.local,
+            hits.face, self._sub_pixel, 1.0 / self.ss**2, np.array(hits.rotations),
+            self._box_texture, _FACE_SHADE, _SKY, TEXTURES.index("gravel"), TEXTURES.index("grass"),
+            _ROAD_TEXEL, _BOX_TEXEL, self._half_road, _MARK_WIDTH, self._lines, self._dashed,
+            _DASH, _DASH + _GAP, self._sample_angle, *packed(), acc)
+        image = acc.reshape(h, w, 3).astype(np.float32)
         if self.blur_sigma > 0:
             image = cv2.GaussianBlur(image, (0, 0), self.blur_sigma)
         if self.noise_sigma > 0:
@@ -300,23 +261,15 @@ class Renderer:
         """Where each pixel's surface point of frame ``index - 1`` is seen in frame ``index``."""
         sc, cam = self.scenario, self.camera
         prev = self.hits(index - 1)
-        t1 = sc.time(index)
         pose1 = sc.world_from_cam(index)
-        world = np.empty_like(prev.local)
-        sky = prev.obj == SKY
-        road = prev.obj == ROAD
-        world[road] = prev.local[road]
-        for i, (_, p) in enumerate(self._boxes_at(t1)):
-            sel = prev.obj == i + 1
-            if sel.any():
-                world[sel] = prev.local[sel] @ p[:3, :3].T + p[:3, 3]
-        rays = np.empty_like(world)
-        rays[~sky] = (world[~sky] - pose1[:3, 3]) @ pose1[:3, :3]
-        rays[sky] = prev.local[sky] @ pose1[:3, :3]  # directions: rotation only
+        boxes = self._boxes_at(sc.time(index))
+        rots, centres = self._box_arrays(pose1[:3, 3], boxes)[0], self._box_centres(boxes)
+        rays = np.empty_like(prev.local)
+        _raycast.seen_from(prev.obj, prev.local, rots, centres, pose1[:3, 3],
+                           np.ascontiguousarray(pose1[:3, :3]), rays)
         pixels, ok = cam.project(rays)
-        grid = pixel_grid(cam.width, cam.height)[self._valid]
         flow = np.full((cam.height, cam.width, 2), np.nan, np.float32)
-        flow[self._valid] = np.where(ok[:, None], pixels - grid, np.nan)
+        flow[self._valid] = np.where(ok[:, None], pixels - self._centre_pixels, np.nan)
         return flow
 
 

@@ -1,4 +1,9 @@
-"""Photographic textures shipped with scikit-image (no download), as float32 BGR images."""
+"""Photographic textures shipped with scikit-image (no download), as float32 BGR mipmaps.
+
+Sampling (nearest texel of the mipmap level matching a sample's footprint, so that far and grazing
+surfaces are prefiltered instead of aliasing, which would make the flow of a static road flicker)
+is done per ray in the renderer's kernel, ``_raycast.shade``.
+"""
 
 from __future__ import annotations
 
@@ -45,29 +50,30 @@ def mipmaps(name: str) -> tuple[NDArray[np.float32], ...]:
     return tuple(levels)
 
 
-def sample(name: str, u: NDArray[np.float64], v: NDArray[np.float64], texel: float,
-           footprint: NDArray[np.float64] | None = None) -> NDArray[np.float32]:
-    """Colours at surface coordinates ``(u, v)`` metres, tiling the texture with ``texel`` metres
-    per texel.
+@cache
+def packed() -> tuple[NDArray[np.float32], NDArray[np.int64], NDArray[np.int64]]:
+    """Every texture's mipmaps in one array, for the renderer's kernel.
 
-    ``footprint`` (metres covered by one sample on the surface) selects the mipmap level, so that
-    far and grazing surfaces are prefiltered instead of aliasing (which would make the flow of a
-    static road flicker); nearest texel within the level.
+    Returns
+    -------
+    data : ndarray of float32, shape (M, 3)
+        All levels of all textures (in ``TEXTURES`` order), row-major, one after the other.
+    table : ndarray of int64, shape (len(TEXTURES), levels, 3)
+        ``(offset, height, width)`` of each level in ``data``; zeros past a texture's last level.
+    levels : ndarray of int64, shape (len(TEXTURES),)
+        Number of levels of each texture.
     """
-    levels = mipmaps(name)
-    if footprint is None:
-        level = np.zeros(u.shape, np.int64)
-    else:
-        with np.errstate(divide="ignore", invalid="ignore"):
-            level = np.floor(np.log2(np.maximum(footprint / texel, 1.0)))
-        level = np.clip(np.nan_to_num(level, nan=0.0), 0, len(levels) - 1).astype(np.int64)
-    out = np.empty(u.shape + (3,), np.float32)
-    for lv in np.unique(level):
-        sel = level == lv
-        tex = levels[lv]
-        h, w = tex.shape[:2]
-        scale = texel * 2.0**lv
-        col = np.floor(u[sel] / scale).astype(np.int64) % w
-        row = np.floor(-v[sel] / scale).astype(np.int64) % h
-        out[sel] = tex[row, col]
-    return out
+    pyramids = [mipmaps(name) for name in TEXTURES]
+    table = np.zeros((len(TEXTURES), max(len(p) for p in pyramids), 3), np.int64)
+    chunks, offset = [], 0
+    for k, levels in enumerate(pyramids):
+        for lv, tex in enumerate(levels):
+            h, w = tex.shape[:2]
+            table[k, lv] = (offset, h, w)
+            chunks.append(tex.reshape(-1, 3))
+            offset += h * w
+    data = np.concatenate(chunks)
+    levels = np.array([len(p) for p in pyramids], np.int64)
+    for arr in (data, table, levels):
+        arr.setflags(write=False)
+    return data, table, levels
