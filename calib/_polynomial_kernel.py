@@ -1,4 +1,5 @@
-"""Pixel-to-ray kernel (numba) for models whose radial function is a polynomial in the angle.
+"""Projection and unprojection kernels (numba) for models whose radial function is a polynomial
+in the angle.
 
 ``r(theta) = sum_k c[k] theta**k`` (Kannala-Brandt, WoodScape's radial polynomial) has no closed
 inverse; :func:`unproject_polynomial` does the whole unprojection of one pixel in one pass —
@@ -91,3 +92,28 @@ def unproject_polynomial(pixels, fx, fy, cx, cy, c, dc, theta_max, r_max, table,
         rays[i, 1] = ry / norm
         rays[i, 2] = z / norm
         valid[i] = True
+
+
+@numba.njit(cache=True, nogil=True)
+def project_polynomial(rays, fx, fy, cx, cy, c, theta_max, pixels, valid):
+    """Fill ``pixels`` (N, 2) and ``valid`` (N,) for ``rays`` (N, 3); NaN pixels where invalid
+    (non-finite or zero rays, rays beyond ``theta_max``)."""
+    nan = np.nan
+    for i in range(rays.shape[0]):
+        x, y, z = rays[i, 0], rays[i, 1], rays[i, 2]
+        rho = math.sqrt(x * x + y * y)
+        theta = math.atan2(rho, z)
+        ok = (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)
+              and (rho > 0.0 or z > 0.0) and theta <= theta_max)
+        if ok:
+            scale = _horner(c, theta) / rho if rho > 0.0 else 0.0
+            u = fx * scale * x + cx
+            v = fy * scale * y + cy
+            ok = math.isfinite(u) and math.isfinite(v)
+        if ok:
+            pixels[i, 0] = u
+            pixels[i, 1] = v
+        else:
+            pixels[i, 0] = nan
+            pixels[i, 1] = nan
+        valid[i] = ok

@@ -179,6 +179,8 @@ class CameraModel:
             False for zero or non-finite rays and rays beyond ``theta_max``.
         """
         p = as_points(rays, 3, "rays")
+        if self._radius_coefficients() is not None:
+            return self._project_polynomial(p)
         x, y, z = p[..., 0], p[..., 1], p[..., 2]
         rho = np.hypot(x, y)
         theta = np.arctan2(rho, z)
@@ -277,6 +279,17 @@ class CameraModel:
     def _theta_table(self) -> NDArray[np.float64]:
         c, dc = self._polynomial
         return _polynomial_kernel.theta_table(c, dc, self.theta_max, self.radius_max, _TABLE_SAMPLES)
+
+    def _project_polynomial(
+        self, p: NDArray[np.float64]
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        c, _ = self._polynomial
+        flat = np.ascontiguousarray(p.reshape(-1, 3))
+        pixels = np.empty((len(flat), 2))
+        valid = np.empty(len(flat), dtype=bool)
+        fx, fy, cx, cy = self._affine()
+        _polynomial_kernel.project_polynomial(flat, fx, fy, cx, cy, c, self.theta_max, pixels, valid)
+        return pixels.reshape(p.shape[:-1] + (2,)), valid.reshape(p.shape[:-1])
 
     def _unproject_polynomial(
         self, q: NDArray[np.float64]
