@@ -276,14 +276,19 @@ class CameraModel:
         return c, np.polynomial.polynomial.polyder(c) if len(c) > 1 else np.zeros(1)
 
     @cached_property
-    def _theta_table(self) -> NDArray[np.float64]:
+    def _polynomial_tuples(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
         c, dc = self._polynomial
+        return tuple(map(float, c)), tuple(map(float, dc))
+
+    @cached_property
+    def _theta_table(self) -> NDArray[np.float64]:
+        c, dc = self._polynomial_tuples
         return _polynomial_kernel.theta_table(c, dc, self.theta_max, self.radius_max, _TABLE_SAMPLES)
 
     def _project_polynomial(
         self, p: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-        c, _ = self._polynomial
+        c, _ = self._polynomial_tuples
         flat = np.ascontiguousarray(p.reshape(-1, 3))
         pixels = np.empty((len(flat), 2))
         valid = np.empty(len(flat), dtype=bool)
@@ -294,7 +299,7 @@ class CameraModel:
     def _unproject_polynomial(
         self, q: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-        c, dc = self._polynomial
+        c, dc = self._polynomial_tuples
         flat = np.ascontiguousarray(q.reshape(-1, 2))
         rays = np.empty((len(flat), 3))
         valid = np.empty(len(flat), dtype=bool)
