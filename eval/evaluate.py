@@ -17,6 +17,7 @@ from fisheyemotion.detect import CONSTRAINT_NAMES, MotionDetector
 from fisheyemotion.frames import to_gray
 from fisheyemotion.params import Params
 from fisheyemotion.sequence import Sequence
+from fisheyemotion.synth import Renderer, load_scenario
 
 __all__ = ["ADDITIONS", "ABLATION_WEIGHTS", "SequenceResult", "additions_table", "combine",
            "evaluate", "evaluate_sequence", "sequence_paths"]
@@ -29,6 +30,7 @@ ADDITIONS = {
     "paper": {},
     "+ ego prior": {"flow_prior": "ego"},
     "+ warp prior": {"flow_prior": "warp"},
+    "+ visibility check": {"visibility_check": True},
     "+ forward-backward check": {"fb_check": True},
     "+ texture check": {"min_texture": 2.0},
     "+ frame gap 3": {"frame_gap": 3},
@@ -63,11 +65,15 @@ class SequenceResult:
 
 def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
                       range_limit: float = 8.0, min_coverage: float = 0.0,
-                      ablation: bool = True) -> SequenceResult:
+                      ablation: bool = True, exact_flow: bool = False) -> SequenceResult:
     """Detect on every consecutive frame pair of a sequence folder and score it.
 
     Detections on pair ``(k - gap, k)`` live on frame ``k - gap``'s pixels (``u' = u + flow``), so
     they are scored against that frame's ground truth (``gap = params.frame_gap``).
+
+    ``exact_flow=True`` replaces the flow method by the exact flow of the rendered scene
+    (re-cast from the folder's ``scenario.yaml``): what the constraints do with perfect
+    correspondences, separating their own limits from the flow's.
     """
     params = Params() if params is None else params
     seq = Sequence(path)
@@ -83,12 +89,15 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
     examples: dict = {}
     objects = seq.objects
     gap = params.frame_gap
+    renderer = _exact_flow_renderer(seq) if exact_flow else None
     grays = [to_gray(seq.frame(i), "frame") for i in range(min(gap, len(seq)))]
     for k in range(gap, len(seq)):
         grays.append(to_gray(seq.frame(k), "frame"))
         g0, g1 = grays.pop(0), grays[-1]
         pose0, pose1 = seq.poses[k - gap], seq.poses[k]
-        if params.fb_check:
+        if renderer is not None:
+            flow, backward = np.nan_to_num(renderer.flow(k, gap=gap), nan=0.0), None
+        elif params.fb_check:
             flow, backward = main.flow(g0, g1, pose0, pose1, backward=True)
         else:
             flow, backward = main.flow(g0, g1, pose0, pose1), None
@@ -129,6 +138,14 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
         sequence=seq.name, flow=params.flow, objects=pd.DataFrame(obj_rows),
         frames=pd.DataFrame(frame_rows), moving_above=moving_above, static_above=static_above,
         n_moving=n_moving, n_static=n_static, ablation=pd.DataFrame(abl_rows), examples=examples)
+
+
+def _exact_flow_renderer(seq: Sequence) -> Renderer:
+    spec = seq.path / "scenario.yaml"
+    if not spec.is_file():
+        raise ValueError(f"{seq.path}: exact_flow needs the scenario.yaml the sequence was "
+                         "rendered from")
+    return Renderer(seq.camera, load_scenario(spec), supersample=1)
 
 
 def evaluate(paths: Iterable[str | os.PathLike], params: Params | None = None, *,
@@ -186,19 +203,23 @@ def combine(results: list[SequenceResult]) -> dict[str, pd.DataFrame]:
 def additions_table(paths: list, flows: list[str], *, workers: int | None = None,
                     progress: bool = True) -> pd.DataFrame:
     """Table 2 figures of the paper's pipeline, each addition alone, and all of them (defaults),
-    for each flow method (one evaluation per variant and flow)."""
+    for each flow method (one evaluation per variant and flow); last, the defaults fed the
+    exact flow of the rendered scenes (``flow`` column ``exact``)."""
     from .metrics import pixel_scores, table2
 
     rows = []
-    variants = {name: Params.paper(**changes) for name, changes in ADDITIONS.items()}
-    variants["all (defaults)"] = Params()
+    variants = {name: (Params.paper(**changes), False) for name, changes in ADDITIONS.items()}
+    variants["all (defaults)"] = (Params(), False)
+    variants["all, exact flow"] = (Params(), True)
     for flow in flows:
-        for name, params in variants.items():
+        for name, (params, exact) in variants.items():
+            if exact and flow != flows[0]:
+                continue  # the same for every flow method
             res = evaluate(paths, params.replace(flow=flow), workers=workers, progress=progress,
-                           ablation=False)
+                           ablation=False, exact_flow=exact)
             tables = combine(res)
             t = table2(tables["objects"], tables["frames"]).set_index("category")
-            row = {"flow": flow, "variant": name}
+            row = {"flow": "exact" if exact else flow, "variant": name}
             for cat in t.index:
                 row[f"{cat} det"] = t.loc[cat, "detection_rate"]
                 row[f"{cat} cov"] = t.loc[cat, "coverage_rate"]

@@ -24,7 +24,7 @@ from .constraints import ConstraintResult, constraints
 from .flow import FlowEstimator, grid_average, grid_centres, grid_upsample
 from .frames import to_gray
 from .params import Params
-from .prior import EgoFlowPrior
+from .prior import EgoFlowPrior, static_scene_targets
 from .road import Road
 from .segment import Region, segment_cells
 
@@ -155,6 +155,7 @@ class MotionDetector:
         self._prior = (EgoFlowPrior(camera, distance=self.params.prior_distance)
                        if self.params.flow_prior != "none" else None)
         self._pixel_coords = None
+        self._view: NDArray[np.bool_] | None = None
         self._temporal: tuple[NDArray, NDArray] | None = None
         self._history: deque[tuple[NDArray[np.uint8], NDArray[np.float64]]] = deque(
             maxlen=self.params.frame_gap)
@@ -234,14 +235,27 @@ class MotionDetector:
         if mode == "none":
             return self._flow(a, b)
         prior = self._prior(pose_a, pose_b, self.road)
+        known = np.nan_to_num(prior, nan=0.0)
         if mode == "ego":
-            return self._flow(a, b, prior)
+            return self._flow(a, b, known)
         xx, yy = self._coords()
-        warped = cv2.remap(b, xx + prior[..., 0], yy + prior[..., 1], cv2.INTER_LINEAR,
-                           borderMode=cv2.BORDER_REPLICATE)
-        residual = self._flow(a, warped)
+        tx, ty = xx + known[..., 0], yy + known[..., 1]
+        warped = cv2.remap(b, tx, ty, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        # Where the static scene leaves the view there is nothing to match: keep `a` there, so
+        # that the residual is 0 instead of garbage that the flow's smoothing spreads around.
+        seen = self._in_view(tx, ty, self._pixel_valid) & np.isfinite(prior).all(axis=-1)
+        residual = self._flow(a, np.where(seen, warped, a))
         # a(u) ~ warped(u + r) = b(u + r + prior(u + r)) ~ b(u + prior(u) + r)
-        return prior + residual
+        return known + residual
+
+    def _in_view(self, x: NDArray, y: NDArray, mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
+        """Whether pixel coordinates ``(x, y)`` fall on the image where ``mask`` is set."""
+        w, h = self.size
+        with np.errstate(invalid="ignore"):
+            inside = (x >= 0) & (x <= w - 1) & (y >= 0) & (y <= h - 1)
+        iu = np.rint(np.where(inside, x, 0)).astype(np.intp)
+        iv = np.rint(np.where(inside, y, 0)).astype(np.intp)
+        return inside & mask[iv, iu]
 
     def _coords(self) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
         if self._pixel_coords is None:
@@ -255,6 +269,16 @@ class MotionDetector:
             forward, backward = self.flow(g0, g1, t0, t1, backward=True)
             return self._from_flow(forward, t0, t1, backward, g0, stream=stream)
         return self._from_flow(self.flow(g0, g1, t0, t1), t0, t1, None, g0, stream=stream)
+
+    def _visible_cells(self, t0: NDArray, t1: NDArray) -> NDArray[np.bool_]:
+        """Cells whose static-scene point is seen in the current frame (``visibility_check``)."""
+        targets, ok = static_scene_targets(self.camera, self._rays0, t0, t1, self.road,
+                                           self.params.prior_distance)
+        if self._view is None:  # the usable pixels, shrunk by one cell
+            g = self.params.grid
+            self._view = cv2.erode(self._pixel_valid.astype(np.uint8), np.ones((2 * g + 1,) * 2,
+                                   np.uint8), borderType=cv2.BORDER_CONSTANT, borderValue=0) > 0
+        return ok & self._in_view(targets[..., 0], targets[..., 1], self._view)
 
     def _textured_cells(self, gray: NDArray[np.uint8]) -> NDArray[np.bool_]:
         """Cells whose mean Sobel gradient magnitude reaches ``params.min_texture``."""
@@ -280,6 +304,8 @@ class MotionDetector:
         rays1, valid1 = self.camera.unproject(self._centres + cell_flow)
         res = constraints(self._rays0, rays1, t0, t1, road=self.road, params=p)
         valid = res.valid & valid1 & self._cell_valid
+        if p.visibility_check:
+            valid &= self._visible_cells(t0, t1)
         if p.fb_check and backward is not None:
             valid &= self._consistent_cells(flow, cell_flow, backward)
         if p.min_texture > 0 and gray is not None:

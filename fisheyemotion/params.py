@@ -24,8 +24,10 @@ class Params:
     """Parameters of :func:`fisheyemotion.constraints` and :func:`fisheyemotion.detect`.
 
     The defaults are the paper's constraints and weights fed by the flow configuration the
-    evaluation on rendered ground truth found best (ego prior, forward-backward check, a gap of
-    3 frames); :meth:`paper` gives the paper's pipeline exactly.
+    evaluation on rendered ground truth found best (frames 3 apart, the next frame warped back
+    by the ego prior so that the flow method measures only the residual, cells whose static
+    point leaves the view and textureless cells not scored, threshold 0.004);
+    :meth:`paper` gives the paper's pipeline.
 
     Attributes
     ----------
@@ -79,6 +81,12 @@ class Params:
     persistence : int
         Streams only: a region is reported only once some of its cells have been moving in this
         many consecutive detections (carried by the flow). 1 (default) reports at once.
+    visibility_check : bool
+        Cells whose static-scene point (the ego prior's prediction: the road, or
+        ``prior_distance`` above the horizon) leaves the current view -- outside the image, the
+        camera's domain or the ROI (the vehicle's own body), within ``grid`` pixels -- are not
+        scored: their correspondence is not in the current frame, so any flow there is wrong.
+        With a frame gap at speed this is the near road at the bottom of a fisheye image.
     fb_check : bool
         Forward-backward consistency: also compute the flow from ``curr`` to ``prev``; cells whose
         mean round-trip error exceeds ``fb_tolerance + fb_relative * |flow|`` pixels are not
@@ -88,7 +96,7 @@ class Params:
     fb_relative : float
         Fraction of the flow magnitude added to the tolerance.
     threshold : float
-        Likelihood above which a cell is moving.
+        Likelihood above which a cell is moving (the paper does not state its value).
     min_area : int
         Regions smaller than this many pixels are dropped.
     saturation : float
@@ -108,16 +116,17 @@ class Params:
     flow: str = "farneback"
     farneback: dict = field(default_factory=lambda: dict(FARNEBACK_DEFAULTS))
     dis_preset: str = "medium"
-    flow_prior: str = "ego"
+    flow_prior: str = "warp"
     prior_distance: float = 15.0
     frame_gap: int = 3
     min_texture: float = 2.0
     temporal_decay: float = 0.0
     persistence: int = 1
-    fb_check: bool = True
+    visibility_check: bool = True
+    fb_check: bool = False
     fb_tolerance: float = 1.0
     fb_relative: float = 0.05
-    threshold: float = 0.005
+    threshold: float = 0.004
     min_area: int = 100
     saturation: float = 0.02
 
@@ -148,7 +157,7 @@ class Params:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
-        for name in ("depth_both_views", "fb_check"):
+        for name in ("depth_both_views", "fb_check", "visibility_check"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}: expected a bool, got {getattr(self, name)!r}")
         fb = dict(self.farneback) if isinstance(self.farneback, dict) else None
@@ -159,11 +168,12 @@ class Params:
 
     @classmethod
     def paper(cls, **changes: Any) -> Params:
-        """The paper's pipeline exactly: Farneback on consecutive frames, no ego prior, no
-        forward-backward check, no texture check (the defaults add these, as chosen by
-        ``docs/evaluation.md``)."""
+        """The paper's pipeline: Farneback on consecutive frames, no ego prior, no visibility,
+        forward-backward or texture check (the defaults add some of these, as chosen by
+        ``docs/evaluation.md``). The paper does not state its likelihood threshold; this uses
+        0.005."""
         return cls(**{"flow_prior": "none", "fb_check": False, "frame_gap": 1, "min_texture": 0.0,
-                      **changes})
+                      "visibility_check": False, "threshold": 0.005, **changes})
 
     def replace(self, **changes: Any) -> Params:
         """A copy with some fields changed (validated again)."""

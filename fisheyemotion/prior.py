@@ -20,6 +20,36 @@ from .road import Road
 _HORIZON_SIN = 0.02
 
 
+def static_scene_targets(camera: CameraModel, rays: NDArray[np.float64], pose0: NDArray,
+                         pose1: NDArray, road: Road, distance: float
+                         ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Where the static scene seen along ``rays`` of the ``pose0`` camera is seen from ``pose1``.
+
+    The scene point is the road point of the ray (below the horizon, closer than ``distance``)
+    or the point at ``distance`` metres.
+
+    Parameters
+    ----------
+    rays : ndarray, shape (..., 3)
+        Camera-frame rays of the ``pose0`` camera (NaN where invalid).
+
+    Returns
+    -------
+    pixels : ndarray, shape (..., 2)
+        In the ``pose1`` image; NaN where the point leaves the camera's domain.
+    valid : ndarray of bool, shape (...)
+    """
+    dirs = rays @ pose0[:3, :3].T
+    centre0 = pose0[:3, 3]
+    height = float(road.height(centre0))
+    down = dirs @ -road.up
+    with np.errstate(invalid="ignore", divide="ignore"):
+        to_road = np.where((down > _HORIZON_SIN) & (height > 0), height / down, np.inf)
+    depth = np.minimum(to_road, distance)
+    points = centre0 + depth[..., None] * dirs
+    return camera.project((points - pose1[:3, 3]) @ pose1[:3, :3])
+
+
 class EgoFlowPrior:
     """Predicted static-scene flow for one camera, computed on a coarse grid and upsampled.
 
@@ -39,18 +69,11 @@ class EgoFlowPrior:
         self._rays, self._valid = camera.unproject(grid)
 
     def __call__(self, pose0: NDArray, pose1: NDArray, road: Road) -> NDArray[np.float32]:
-        """Flow ``(H, W, 2)`` float32 from the ``pose0`` frame to the ``pose1`` frame."""
-        dirs = self._rays @ pose0[:3, :3].T
-        centre0 = pose0[:3, 3]
-        height = float(road.height(centre0))
-        down = dirs @ -road.up
-        with np.errstate(invalid="ignore", divide="ignore"):
-            to_road = np.where((down > _HORIZON_SIN) & (height > 0), height / down, np.inf)
-        depth = np.minimum(to_road, self.distance)
-        points = centre0 + depth[..., None] * dirs
-        seen = (points - pose1[:3, 3]) @ pose1[:3, :3]
-        pixels, ok = self.camera.project(seen)
-        flow = np.where((ok & self._valid)[..., None], pixels - self._pixels, 0.0).astype(np.float32)
+        """Flow ``(H, W, 2)`` float32 from the ``pose0`` frame to the ``pose1`` frame; NaN where
+        the static point leaves the camera's domain (and next to such samples)."""
+        pixels, ok = static_scene_targets(self.camera, self._rays, pose0, pose1, road,
+                                          self.distance)
+        flow = np.where((ok & self._valid)[..., None], pixels - self._pixels, np.nan).astype(np.float32)
         h, w = self.camera.height, self.camera.width
         # Coarse sample j sits at pixel step * j: look up fractional sample x / step.
         xs = (np.arange(w, dtype=np.float32) / self.step)[None, :].repeat(h, 0)

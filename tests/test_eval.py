@@ -201,8 +201,12 @@ def test_additions_table_has_each_addition_and_the_defaults(sequences):
     from fisheyemotion.eval.evaluate import ADDITIONS, additions_table
 
     table = additions_table(sequences[:1], ["dis"], workers=1, progress=False)
-    assert list(table.variant) == list(ADDITIONS) + ["all (defaults)"]
+    assert list(table.variant) == list(ADDITIONS) + ["all (defaults)", "all, exact flow"]
+    assert list(table.flow) == ["dis"] * (len(ADDITIONS) + 1) + ["exact"]
     assert {"crossing det", "false positives cov", "iou"} <= set(table.columns)
+    # With exact correspondences no static road pixel is flagged: what remains is geometry.
+    exact = table.set_index("variant").loc["all, exact flow"]
+    assert exact["iou"] >= table.set_index("variant").loc["all (defaults)", "iou"]
     paper = table.set_index("variant").loc["paper"]
     defaults = table.set_index("variant").loc["all (defaults)"]
     assert defaults["false positives cov"] <= paper["false positives cov"]

@@ -253,14 +253,18 @@ class Renderer:
         moving = np.where(np.isin(ids, moving_ids) & (ids > 0), 255, 0).astype(np.uint8)
         rng_map = np.full((h, w), np.nan, np.float32)
         rng_map[self._valid] = hits.t
-        flow = None if index == 0 else self._flow(index)
+        flow = None if index == 0 else self.flow(index)
         self._prev_hits = (index, hits)
         return FrameTruth(index, image, ids, moving, rng_map, flow, pose)
 
-    def _flow(self, index: int) -> NDArray[np.float32]:
-        """Where each pixel's surface point of frame ``index - 1`` is seen in frame ``index``."""
+    def flow(self, index: int, *, gap: int = 1) -> NDArray[np.float32]:
+        """Exact flow ``(H, W, 2)`` from frame ``index - gap`` to frame ``index``: where each
+        pixel's surface point of the earlier frame is seen in frame ``index`` (NaN where it leaves
+        the camera's domain; occlusion is not tested)."""
+        if not isinstance(gap, int) or not 1 <= gap <= index:
+            raise ValueError(f"gap: expected an integer in [1, index={index}], got {gap!r}")
         sc, cam = self.scenario, self.camera
-        prev = self.hits(index - 1)
+        prev = self.hits(index - gap)
         pose1 = sc.world_from_cam(index)
         boxes = self._boxes_at(sc.time(index))
         rots, centres = self._box_arrays(pose1[:3, 3], boxes)[0], self._box_centres(boxes)
