@@ -54,3 +54,24 @@ def test_fisheyemotion_unproject(benchmark, cam):
     back, _ = cam.project(rays[valid])
     benchmark.extra_info["pixels"] = len(PIXELS)
     benchmark.extra_info["max_pixel_round_trip_error"] = float(np.abs(back - PIXELS[valid]).max())
+
+
+RAYS, _RAYS_VALID = KB.unproject(PIXELS)
+RAYS_FRONT = RAYS[_RAYS_VALID & (RAYS[:, 2] > 0)]  # cv2.fisheye projects the front hemisphere
+
+
+@pytest.mark.benchmark(group="project-640x480")
+def test_cv2_fisheye_projectPoints(benchmark):
+    obj = RAYS_FRONT.reshape(-1, 1, 3)
+    out = benchmark(cv2.fisheye.projectPoints, obj, np.zeros(3), np.zeros(3), K, D)[0]
+    ours, _ = KB.project(RAYS_FRONT)
+    benchmark.extra_info["rays"] = len(RAYS_FRONT)
+    benchmark.extra_info["max_px_diff"] = float(np.abs(out.reshape(-1, 2) - ours).max())
+
+
+@pytest.mark.benchmark(group="project-640x480")
+@pytest.mark.parametrize("cam", [KB, DS, EUCM], ids=["kannala_brandt", "double_sphere",
+                                                     "enhanced_unified"])
+def test_fisheyemotion_project(benchmark, cam):
+    pixels, valid = benchmark(cam.project, RAYS_FRONT)
+    benchmark.extra_info["rays"] = len(RAYS_FRONT)

@@ -148,7 +148,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="render the bundled scenarios, detect, write a report")
     p.add_argument("--data", default=str(REPO_DATA), help="the data/ folder (default: bundled)")
     p.add_argument("--out", default="data/generated/demo", help="output folder")
-    p.add_argument("--frames", type=int, default=6, help="frames per scenario")
+    p.add_argument("--frames", type=int, default=16, help="frames per scenario")
     p.add_argument("--scenarios", help="comma-separated scenario names (default: all)")
     p.add_argument("--flow", default="farneback,dis", help="comma-separated: farneback,dis")
     p.add_argument("--workers", type=int)
