@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from .calib.base import CameraModel
+from .calib.base import CameraModel, pixel_grid
 from .calib.transforms import check_rigid
 from .constraints import ConstraintResult, constraints
 from .flow import FlowEstimator, grid_average, grid_centres, grid_upsample
@@ -234,19 +234,16 @@ class MotionDetector:
         mode = self.params.flow_prior
         if mode == "none":
             return self._flow(a, b)
-        prior = self._prior(pose_a, pose_b, self.road)
-        known = np.nan_to_num(prior, nan=0.0)
+        prior, seen = self._prior(pose_a, pose_b, self.road, view=self._pixel_valid)
         if mode == "ego":
-            return self._flow(a, b, known)
-        xx, yy = self._coords()
-        tx, ty = xx + known[..., 0], yy + known[..., 1]
-        warped = cv2.remap(b, tx, ty, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            return self._flow(a, b, prior)
+        maps = self._coords() + prior
+        warped = cv2.remap(b, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         # Where the static scene leaves the view there is nothing to match: keep `a` there, so
         # that the residual is 0 instead of garbage that the flow's smoothing spreads around.
-        seen = self._in_view(tx, ty, self._pixel_valid) & np.isfinite(prior).all(axis=-1)
-        residual = self._flow(a, np.where(seen, warped, a))
+        np.copyto(warped, a, where=~seen)
         # a(u) ~ warped(u + r) = b(u + r + prior(u + r)) ~ b(u + prior(u) + r)
-        return known + residual
+        return prior + self._flow(a, warped)
 
     def _in_view(self, x: NDArray, y: NDArray, mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
         """Whether pixel coordinates ``(x, y)`` fall on the image where ``mask`` is set."""
@@ -257,11 +254,11 @@ class MotionDetector:
         iv = np.rint(np.where(inside, y, 0)).astype(np.intp)
         return inside & mask[iv, iu]
 
-    def _coords(self) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    def _coords(self) -> NDArray[np.float32]:
+        """``(H, W, 2)`` float32 pixel coordinates ``(u, v)`` (a remap map of the identity)."""
         if self._pixel_coords is None:
             w, h = self.size
-            xx, yy = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
-            self._pixel_coords = (xx, yy)
+            self._pixel_coords = pixel_grid(w, h).astype(np.float32)
         return self._pixel_coords
 
     def _detect_gray(self, g0, g1, t0, t1, *, stream: bool = False) -> Detection:
@@ -289,8 +286,7 @@ class MotionDetector:
     def _consistent_cells(self, flow, cell_flow, backward) -> NDArray[np.bool_]:
         """Cells whose mean forward-backward error is within tolerance (``cell_flow``: the
         cells' mean flow, already computed by the caller)."""
-        xx, yy = self._coords()
-        back_at = cv2.remap(backward, xx + flow[..., 0], yy + flow[..., 1], cv2.INTER_LINEAR,
+        back_at = cv2.remap(backward, self._coords() + flow, None, cv2.INTER_LINEAR,
                             borderMode=cv2.BORDER_REPLICATE)
         error = np.linalg.norm(flow + back_at, axis=-1)
         p = self.params

@@ -9,6 +9,8 @@ it sinks below the road plane (the positive-height term firing on static ground)
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
@@ -68,14 +70,43 @@ class EgoFlowPrior:
         self._pixels = grid
         self._rays, self._valid = camera.unproject(grid)
 
-    def __call__(self, pose0: NDArray, pose1: NDArray, road: Road) -> NDArray[np.float32]:
-        """Flow ``(H, W, 2)`` float32 from the ``pose0`` frame to the ``pose1`` frame; NaN where
-        the static point leaves the camera's domain (and next to such samples)."""
+    def __call__(self, pose0: NDArray, pose1: NDArray, road: Road, *,
+                 view: NDArray[np.bool_] | None = None
+                 ) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
+        """The predicted flow from the ``pose0`` frame to the ``pose1`` frame, and where it is seen.
+
+        Parameters
+        ----------
+        view : ndarray of bool, shape (H, W), optional
+            Usable pixels of the ``pose1`` frame (default: the whole image).
+
+        Returns
+        -------
+        flow : ndarray of float32, shape (H, W, 2)
+            0 where the static point leaves the camera's domain.
+        seen : ndarray of bool, shape (H, W)
+            The predicted point lands on ``view`` (at the prediction grid's resolution).
+        """
         pixels, ok = static_scene_targets(self.camera, self._rays, pose0, pose1, road,
                                           self.distance)
-        flow = np.where((ok & self._valid)[..., None], pixels - self._pixels, np.nan).astype(np.float32)
+        ok &= self._valid
         h, w = self.camera.height, self.camera.width
-        # Coarse sample j sits at pixel step * j: look up fractional sample x / step.
+        with np.errstate(invalid="ignore"):
+            seen = ok & (pixels[..., 0] >= 0) & (pixels[..., 0] <= w - 1)
+            seen &= (pixels[..., 1] >= 0) & (pixels[..., 1] <= h - 1)
+        if view is not None:
+            iu = np.rint(np.where(seen, pixels[..., 0], 0)).astype(np.intp)
+            iv = np.rint(np.where(seen, pixels[..., 1], 0)).astype(np.intp)
+            seen &= view[iv, iu]
+        flow = np.where(ok[..., None], pixels - self._pixels, 0.0).astype(np.float32)
+        return (cv2.remap(flow, *self._lookup, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE),
+                cv2.remap(seen.astype(np.uint8), *self._lookup, cv2.INTER_NEAREST,
+                          borderMode=cv2.BORDER_REPLICATE) > 0)
+
+    @cached_property
+    def _lookup(self) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+        """Fractional coarse-grid coordinates of every pixel (sample j sits at pixel step * j)."""
+        h, w = self.camera.height, self.camera.width
         xs = (np.arange(w, dtype=np.float32) / self.step)[None, :].repeat(h, 0)
         ys = (np.arange(h, dtype=np.float32) / self.step)[:, None].repeat(w, 1)
-        return cv2.remap(flow, xs, ys, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        return xs, ys

@@ -28,7 +28,7 @@ def road_frames():
 
 def test_ego_prior_is_the_exact_flow_of_the_road(road_frames):
     r, frames = road_frames
-    prior = EgoFlowPrior(CAM, step=4)(frames[0].pose, frames[1].pose, fm.Road())
+    prior, _ = EgoFlowPrior(CAM, step=4)(frames[0].pose, frames[1].pose, fm.Road())
     road = (frames[0].ids == 0) & np.isfinite(frames[1].flow).all(axis=-1) & (r.roi() > 0)
     below = np.zeros_like(road)
     below[140:] = True  # well below the horizon, where the road is nearer than prior_distance
@@ -45,7 +45,7 @@ def test_warp_prior_recovers_large_road_displacements(road_frames, flow):
     for prior in ("none", "warp"):
         det = fm.MotionDetector(CAM, params=fm.Params(flow=flow, flow_prior=prior), roi=roi)
         est = det.flow(g[0], g[2], frames[0].pose, frames[2].pose)
-        exact = EgoFlowPrior(CAM, step=1)(frames[0].pose, frames[2].pose, fm.Road())
+        exact, _ = EgoFlowPrior(CAM, step=1)(frames[0].pose, frames[2].pose, fm.Road())
         near = (frames[0].ids == 0) & (roi > 0)
         near[:150] = False
         errors[prior] = np.median(np.linalg.norm(est - exact, axis=-1)[near])
