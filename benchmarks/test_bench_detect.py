@@ -43,7 +43,7 @@ CONFIGS = {
 
 @pytest.mark.parametrize("name", CONFIGS)
 @pytest.mark.parametrize("stage", ["flow_alone", "paper_pipeline", "default_pipeline",
-                                   "ray_lookup", "constraints", "segmentation"])
+                                   "non_flow", "ray_lookup", "constraints", "segmentation"])
 def test_detect_stage(benchmark, frames, name, stage):
     fr, roi = frames
     g0, g1 = _gray(fr[0]), _gray(fr[3])
@@ -57,6 +57,9 @@ def test_detect_stage(benchmark, frames, name, stage):
     elif stage == "default_pipeline":
         det = fm.MotionDetector(CAM, params=fm.Params(**CONFIGS[name]), roi=roi)
         benchmark(det.detect, g0, g1, p0, p1)
+    elif stage == "non_flow":  # everything detect() does besides the flow (paper pipeline)
+        flow = paper._flow(g0, g1)
+        benchmark(paper.detect_flow, flow, p0, p1, prev=g0)
     else:
         flow = paper._flow(g0, g1)
         cells = grid_average(flow, 5)
