@@ -24,7 +24,7 @@ from .constraints import ConstraintResult, constraints
 from .flow import FlowEstimator, grid_average, grid_centres, grid_upsample
 from .frames import to_gray
 from .params import Params
-from .prior import EgoFlowPrior, static_scene_targets
+from .prior import EgoFlowPrior, lands_on, static_scene_targets
 from .road import Road
 from .segment import Region, segment_cells
 
@@ -243,16 +243,9 @@ class MotionDetector:
         # that the residual is 0 instead of garbage that the flow's smoothing spreads around.
         np.copyto(warped, a, where=~seen)
         # a(u) ~ warped(u + r) = b(u + r + prior(u + r)) ~ b(u + prior(u) + r)
-        return prior + self._flow(a, warped)
-
-    def _in_view(self, x: NDArray, y: NDArray, mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
-        """Whether pixel coordinates ``(x, y)`` fall on the image where ``mask`` is set."""
-        w, h = self.size
-        with np.errstate(invalid="ignore"):
-            inside = (x >= 0) & (x <= w - 1) & (y >= 0) & (y <= h - 1)
-        iu = np.rint(np.where(inside, x, 0)).astype(np.intp)
-        iv = np.rint(np.where(inside, y, 0)).astype(np.intp)
-        return inside & mask[iv, iu]
+        residual = self._flow(a, warped)
+        residual += prior
+        return residual
 
     def _coords(self) -> NDArray[np.float32]:
         """``(H, W, 2)`` float32 pixel coordinates ``(u, v)`` (a remap map of the identity)."""
@@ -275,7 +268,7 @@ class MotionDetector:
             g = self.params.grid
             self._view = cv2.erode(self._pixel_valid.astype(np.uint8), np.ones((2 * g + 1,) * 2,
                                    np.uint8), borderType=cv2.BORDER_CONSTANT, borderValue=0) > 0
-        return ok & self._in_view(targets[..., 0], targets[..., 1], self._view)
+        return lands_on(targets, ok, self._view, *self.size)
 
     def _textured_cells(self, gray: NDArray[np.uint8]) -> NDArray[np.bool_]:
         """Cells whose mean Sobel gradient magnitude reaches ``params.min_texture``."""

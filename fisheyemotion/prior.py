@@ -9,13 +9,11 @@ it sinks below the road plane (the positive-height term firing on static ground)
 
 from __future__ import annotations
 
-from functools import cached_property
-
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from .calib.base import CameraModel, pixel_grid
+from .calib.base import CameraModel
 from .road import Road
 
 #: Rays closer than this to the horizon (sine) use the fixed distance.
@@ -55,6 +53,9 @@ def static_scene_targets(camera: CameraModel, rays: NDArray[np.float64], pose0: 
 class EgoFlowPrior:
     """Predicted static-scene flow for one camera, computed on a coarse grid and upsampled.
 
+    The coarse samples sit at pixels ``step * j + (step - 1) / 2``, where an area-aligned
+    ``cv2.resize`` by ``step`` interpolates them bilinearly (edges replicated).
+
     Parameters
     ----------
     camera : CameraModel
@@ -66,9 +67,27 @@ class EgoFlowPrior:
 
     def __init__(self, camera: CameraModel, *, distance: float = 15.0, step: int = 8) -> None:
         self.camera, self.distance, self.step = camera, float(distance), int(step)
-        grid = pixel_grid(camera.width, camera.height)[::step, ::step]
-        self._pixels = grid
-        self._rays, self._valid = camera.unproject(grid)
+        w, h = camera.width, camera.height
+        cols, rows = -(-w // step), -(-h // step)
+        u = np.arange(cols) * step + (step - 1) / 2
+        v = np.arange(rows) * step + (step - 1) / 2
+        self._pixels = np.stack(np.meshgrid(u, v), axis=-1)
+        self._rays, self._valid = camera.unproject(self._pixels)
+        self._last: tuple[bytes, tuple[NDArray, NDArray]] | None = None
+
+    def _targets(self, pose0: NDArray, pose1: NDArray, road: Road):
+        key = np.asarray(pose0).tobytes() + np.asarray(pose1).tobytes() + repr(road).encode()
+        if self._last is None or self._last[0] != key:  # detect asks twice per pair
+            pixels, ok = static_scene_targets(self.camera, self._rays, pose0, pose1, road,
+                                              self.distance)
+            self._last = (key, (pixels, ok & self._valid))
+        return self._last[1]
+
+    def _upsample(self, coarse: NDArray, interpolation: int) -> NDArray:
+        h, w = self.camera.height, self.camera.width
+        rows, cols = coarse.shape[:2]
+        full = cv2.resize(coarse, (cols * self.step, rows * self.step), interpolation=interpolation)
+        return full[:h, :w]
 
     def __call__(self, pose0: NDArray, pose1: NDArray, road: Road, *,
                  view: NDArray[np.bool_] | None = None
@@ -87,26 +106,28 @@ class EgoFlowPrior:
         seen : ndarray of bool, shape (H, W)
             The predicted point lands on ``view`` (at the prediction grid's resolution).
         """
-        pixels, ok = static_scene_targets(self.camera, self._rays, pose0, pose1, road,
-                                          self.distance)
-        ok &= self._valid
-        h, w = self.camera.height, self.camera.width
-        with np.errstate(invalid="ignore"):
-            seen = ok & (pixels[..., 0] >= 0) & (pixels[..., 0] <= w - 1)
-            seen &= (pixels[..., 1] >= 0) & (pixels[..., 1] <= h - 1)
-        if view is not None:
-            iu = np.rint(np.where(seen, pixels[..., 0], 0)).astype(np.intp)
-            iv = np.rint(np.where(seen, pixels[..., 1], 0)).astype(np.intp)
-            seen &= view[iv, iu]
+        pixels, ok = self._targets(pose0, pose1, road)
         flow = np.where(ok[..., None], pixels - self._pixels, 0.0).astype(np.float32)
-        return (cv2.remap(flow, *self._lookup, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE),
-                cv2.remap(seen.astype(np.uint8), *self._lookup, cv2.INTER_NEAREST,
-                          borderMode=cv2.BORDER_REPLICATE) > 0)
+        return self._upsample(flow, cv2.INTER_LINEAR), self.seen(pose0, pose1, road, view=view)
 
-    @cached_property
-    def _lookup(self) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
-        """Fractional coarse-grid coordinates of every pixel (sample j sits at pixel step * j)."""
-        h, w = self.camera.height, self.camera.width
-        xs = (np.arange(w, dtype=np.float32) / self.step)[None, :].repeat(h, 0)
-        ys = (np.arange(h, dtype=np.float32) / self.step)[:, None].repeat(w, 1)
-        return xs, ys
+    def seen(self, pose0: NDArray, pose1: NDArray, road: Road, *,
+             view: NDArray[np.bool_] | None = None) -> NDArray[np.bool_]:
+        """``(H, W)`` bool: the static point of the pixel lands on ``view`` in the ``pose1``
+        frame (default: anywhere on the image), at the prediction grid's resolution."""
+        pixels, ok = self._targets(pose0, pose1, road)
+        seen = lands_on(pixels, ok, view, self.camera.width, self.camera.height)
+        return self._upsample(seen.astype(np.uint8), cv2.INTER_NEAREST) > 0
+
+
+def lands_on(pixels: NDArray[np.float64], ok: NDArray[np.bool_], view: NDArray[np.bool_] | None,
+             width: int, height: int) -> NDArray[np.bool_]:
+    """Where ``pixels`` (..., 2), valid where ``ok``, fall inside the ``width x height`` image
+    and, if given, on ``view`` (H, W) bool (nearest pixel)."""
+    with np.errstate(invalid="ignore"):
+        inside = ok & (pixels[..., 0] >= 0) & (pixels[..., 0] <= width - 1)
+        inside &= (pixels[..., 1] >= 0) & (pixels[..., 1] <= height - 1)
+    if view is None:
+        return inside
+    iu = np.rint(np.where(inside, pixels[..., 0], 0)).astype(np.intp)
+    iv = np.rint(np.where(inside, pixels[..., 1], 0)).astype(np.intp)
+    return inside & view[iv, iu]
