@@ -260,15 +260,27 @@ class MotionDetector:
             return self._from_flow(forward, t0, t1, backward, g0, stream=stream)
         return self._from_flow(self.flow(g0, g1, t0, t1), t0, t1, None, g0, stream=stream)
 
-    def _visible_cells(self, t0: NDArray, t1: NDArray) -> NDArray[np.bool_]:
-        """Cells whose static-scene point is seen in the current frame (``visibility_check``)."""
+    def _resolvable_cells(self, t0: NDArray, t1: NDArray, *, parallax: bool) -> NDArray[np.bool_]:
+        """Cells the static-scene prediction says can be scored: its point is seen in the current
+        frame (``visibility_check``) and moved by at least ``min_parallax`` pixels through the
+        camera's translation (``parallax``: the displacement beyond what the rotation alone
+        gives a point at infinity)."""
+        p = self.params
         targets, ok = static_scene_targets(self.camera, self._rays0, t0, t1, self.road,
-                                           self.params.prior_distance)
-        if self._view is None:  # the usable pixels, shrunk by one cell
-            g = self.params.grid
-            self._view = cv2.erode(self._pixel_valid.astype(np.uint8), np.ones((2 * g + 1,) * 2,
-                                   np.uint8), borderType=cv2.BORDER_CONSTANT, borderValue=0) > 0
-        return lands_on(targets, ok, self._view, *self.size)
+                                           p.prior_distance)
+        keep = ok
+        if p.visibility_check:
+            if self._view is None:  # the usable pixels, shrunk by one cell
+                g = p.grid
+                self._view = cv2.erode(self._pixel_valid.astype(np.uint8),
+                                       np.ones((2 * g + 1,) * 2, np.uint8),
+                                       borderType=cv2.BORDER_CONSTANT, borderValue=0) > 0
+            keep = lands_on(targets, ok, self._view, *self.size)
+        if parallax and p.min_parallax > 0:
+            at_infinity, _ = self.camera.project(self._rays0 @ (t0[:3, :3].T @ t1[:3, :3]))
+            with np.errstate(invalid="ignore"):
+                keep &= np.linalg.norm(targets - at_infinity, axis=-1) >= p.min_parallax
+        return keep
 
     def _textured_cells(self, gray: NDArray[np.uint8]) -> NDArray[np.bool_]:
         """Cells whose mean Sobel gradient magnitude reaches ``params.min_texture``."""
@@ -293,8 +305,8 @@ class MotionDetector:
         rays1, valid1 = self.camera.unproject(self._centres + cell_flow)
         res = constraints(self._rays0, rays1, t0, t1, road=self.road, params=p)
         valid = res.valid & valid1 & self._cell_valid
-        if p.visibility_check:
-            valid &= self._visible_cells(t0, t1)
+        if p.visibility_check or (p.min_parallax > 0 and not res.static_camera):
+            valid &= self._resolvable_cells(t0, t1, parallax=not res.static_camera)
         if p.fb_check and backward is not None:
             valid &= self._consistent_cells(flow, cell_flow, backward)
         if p.min_texture > 0 and gray is not None:

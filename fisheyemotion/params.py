@@ -87,6 +87,12 @@ class Params:
         camera's domain or the ROI (the vehicle's own body), within ``grid`` pixels -- are not
         scored: their correspondence is not in the current frame, so any flow there is wrong.
         With a frame gap at speed this is the near road at the bottom of a fisheye image.
+    min_parallax : float
+        Pixels; cells where the static-scene point (road, or ``prior_distance`` above the
+        horizon) moves less than this through the camera's translation -- near the epipole and
+        the horizon -- are not scored: there the flow's error is as large as everything depth
+        changes, so height and depth cannot be resolved. 0 disables the check; never applied
+        when the camera stands still.
     fb_check : bool
         Forward-backward consistency: also compute the flow from ``curr`` to ``prev``; cells whose
         mean round-trip error exceeds ``fb_tolerance + fb_relative * |flow|`` pixels are not
@@ -123,6 +129,7 @@ class Params:
     temporal_decay: float = 0.0
     persistence: int = 1
     visibility_check: bool = True
+    min_parallax: float = 0.0
     fb_check: bool = False
     fb_tolerance: float = 1.0
     fb_relative: float = 0.05
@@ -137,7 +144,8 @@ class Params:
                              f"got {self.weights!r}")
         object.__setattr__(self, "weights", tuple(float(v) for v in w))
         for name in ("lambda_h", "lambda_p", "lambda_p_ratio", "min_baseline", "epipole_margin",
-                     "threshold", "saturation", "fb_tolerance", "fb_relative", "min_texture"):
+                     "threshold", "saturation", "fb_tolerance", "fb_relative", "min_texture",
+                     "min_parallax"):
             v = getattr(self, name)
             if not _finite(v) or v < 0:
                 raise ValueError(f"{name}: expected a finite number >= 0, got {v!r}")

@@ -182,3 +182,35 @@ def test_visibility_check_drops_the_cells_whose_road_point_leaves_the_view(road_
     assert not (v_on & cells_gone).any() and (v_off & cells_gone).any()
     # Cells well inside the view keep their score (the check shrinks the view by one cell).
     assert (v_on[cells_seen]).mean() > 0.8
+
+
+def test_min_parallax_drops_exactly_the_cells_whose_road_point_barely_moves(road_frames):
+    """Pure forward motion over a flat road: a road point's flow is all translational parallax,
+    so the cells dropped are those whose exact flow is under min_parallax."""
+    r, frames = road_frames
+    flow = np.nan_to_num(r.flow(1))
+    pose0, pose1 = frames[0].pose, frames[1].pose
+    valid = {}
+    for mp in (0.0, 6.0):
+        det = fm.MotionDetector(CAM, params=fm.Params(min_parallax=mp, visibility_check=False),
+                                roi=r.roi())
+        valid[mp] = det.detect_flow(flow, pose0, pose1).grid.valid
+    assert (valid[6.0] <= valid[0.0]).all()
+    rays = det._rays0 @ pose0[:3, :3].T
+    road = grid_average((frames[0].ids == 0).astype(np.float32), 5) == 1
+    road &= rays[..., 2] < -0.1  # below the horizon: the prior's point is the road point
+    moved = np.linalg.norm(grid_average(flow, 5), axis=-1)
+    dropped = road & valid[0.0] & ~valid[6.0]
+    kept = road & valid[6.0]
+    assert dropped.sum() > 20 and kept.sum() > 100
+    assert moved[dropped].max() < 6.3 and moved[kept].min() > 5.7  # cell means of exact flows
+
+
+def test_min_parallax_does_not_apply_to_a_camera_standing_still(road_frames):
+    r, frames = road_frames
+    pose = frames[0].pose
+    flow = np.zeros((240, 320, 2), np.float32)
+    det = fm.MotionDetector(CAM, params=fm.Params(min_parallax=3.0, visibility_check=False),
+                            roi=r.roi())
+    res = det.detect_flow(flow, pose, pose)
+    assert res.static_camera and res.grid.valid.sum() > 0.9 * det._cell_valid.sum()
