@@ -65,7 +65,9 @@ class Params:
         measures the residual (removing large displacements *and* the fisheye/perspective
         deformation of the road); flow = prior + residual.
     prior_distance : float
-        Metres, for the ego prior's rays that do not meet the road closer than that.
+        Metres, for the ego prior's rays that do not meet the road closer than that (the default,
+        1 km, stands for infinity: the sky and distant structure move with the rotation only;
+        the evaluation measured 15 m and 50 m as worse).
     frame_gap : int
         Streaming (``MotionDetector.apply``, eval): compare each frame with the one ``frame_gap``
         frames earlier (paper: 1, consecutive frames). Larger gaps multiply both the ego
@@ -123,7 +125,7 @@ class Params:
     farneback: dict = field(default_factory=lambda: dict(FARNEBACK_DEFAULTS))
     dis_preset: str = "medium"
     flow_prior: str = "warp"
-    prior_distance: float = 15.0
+    prior_distance: float = 1000.0
     frame_gap: int = 3
     min_texture: float = 2.0
     temporal_decay: float = 0.0

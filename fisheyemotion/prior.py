@@ -65,7 +65,7 @@ class EgoFlowPrior:
         Grid stride (pixels) of the prediction before bilinear upsampling.
     """
 
-    def __init__(self, camera: CameraModel, *, distance: float = 15.0, step: int = 8) -> None:
+    def __init__(self, camera: CameraModel, *, distance: float = 1000.0, step: int = 8) -> None:
         self.camera, self.distance, self.step = camera, float(distance), int(step)
         w, h = camera.width, camera.height
         cols, rows = -(-w // step), -(-h // step)
