@@ -222,3 +222,29 @@ def test_cast_finds_the_nearest_surface_of_every_ray(name):
     expected_obj = np.where(np.isinf(nearest), -1, np.argmin(t_all, axis=1))
     assert (hits.obj == expected_obj).mean() > 0.9999  # ties at edges may go either way
     assert (hits.obj > 0).sum() > 100  # the test does hit boxes
+
+
+@pytest.mark.parametrize("gap", [2, 3])
+def test_flow_over_a_gap_lands_where_the_camera_model_projects_static_points(crossing, gap):
+    sc, r, _ = crossing
+    rng = np.random.default_rng(gap)
+    v, u = np.nonzero(KB.valid_pixel_mask())
+    pick = rng.choice(len(u), 3000, replace=False)
+    pixels = np.stack([u[pick], v[pick]], -1).astype(float)
+    x0, hits, _ = _world_points(r, 0, pixels)
+    static = (hits.obj == 0) | np.isin(hits.obj, [i + 1 for i, b in enumerate(sc.boxes) if not b.moving])
+    static &= np.isfinite(hits.t)
+    pose = sc.world_from_cam(gap)
+    projected, ok = KB.project((x0[static] - pose[:3, 3]) @ pose[:3, :3])
+    flow = r.flow(gap, gap=gap)[v[pick][static], u[pick][static]]
+    good = ok & np.isfinite(flow).all(axis=1)
+    assert good.sum() > 1000
+    np.testing.assert_allclose(pixels[static][good] + flow[good], projected[good], atol=1e-6)
+
+
+def test_flow_gap_is_checked(crossing):
+    _, r, _ = crossing
+    with pytest.raises(ValueError, match="gap"):
+        r.flow(2, gap=3)
+    with pytest.raises(ValueError, match="gap"):
+        r.flow(2, gap=0)
