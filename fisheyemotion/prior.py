@@ -1,10 +1,12 @@
-"""Ego-motion-guided flow: the flow a static scene would have, as the flow method's start.
+"""Ego-motion-guided flow: the flow a static scene would have, and where that scene stays in view.
 
 Every pixel's ray is followed to the road plane (below the horizon) or to a point at
 ``distance`` metres (above it, and where the road is farther than that); the point is projected
-into the current camera. Large road displacements near the bottom of a fisheye image are then
-found by Farneback or DIS, which otherwise underestimate them and make the static road look like
-it sinks below the road plane (the positive-height term firing on static ground).
+into the current camera. The detector warps the current frame back by this prediction so that
+Farneback or DIS only measure the residual (they otherwise underestimate the large road
+displacements near the bottom of a fisheye image and make the static road look like it sinks
+below the road plane), keeps the previous frame where the predicted point leaves the view, and
+does not score the cells whose point leaves it (``docs/geometry.md``).
 """
 
 from __future__ import annotations
