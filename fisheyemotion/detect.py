@@ -354,7 +354,8 @@ class MotionDetector:
         likelihood = to_image(np.nan_to_num(cell_likelihood, nan=0.0))
         cell_mask, regions = segment_cells(cell_likelihood, threshold=p.threshold, grid=p.grid,
                                            min_area=p.min_area, age=age,
-                                           persistence=p.persistence)
+                                           persistence=p.persistence,
+                                           seed_threshold=p.seed_threshold)
         mask = grid_upsample(cell_mask.astype(np.uint8) * 255, p.grid, w, h)
         mask[~self._pixel_valid] = 0
         grid = Grid(p.grid, self._centres, cell_flow, cell_likelihood, valid)

@@ -107,6 +107,10 @@ class Params:
         Fraction of the flow magnitude added to the tolerance.
     threshold : float
         Likelihood above which a cell is moving (the paper does not state its value).
+    seed_threshold : float
+        Hysteresis: a region is kept only if one of its cells exceeds this (its other cells need
+        only ``threshold``; scikit-image's ``apply_hysteresis_threshold``). At or below
+        ``threshold`` it has no effect.
     min_area : int
         Regions smaller than this many pixels are dropped.
     saturation : float
@@ -138,6 +142,7 @@ class Params:
     fb_tolerance: float = 1.0
     fb_relative: float = 0.05
     threshold: float = 0.004
+    seed_threshold: float = 0.0
     min_area: int = 100
     saturation: float = 0.02
 
@@ -149,7 +154,7 @@ class Params:
         object.__setattr__(self, "weights", tuple(float(v) for v in w))
         for name in ("lambda_h", "lambda_p", "lambda_p_ratio", "min_baseline", "epipole_margin",
                      "threshold", "saturation", "fb_tolerance", "fb_relative", "min_texture",
-                     "min_parallax"):
+                     "min_parallax", "seed_threshold"):
             v = getattr(self, name)
             if not _finite(v) or v < 0:
                 raise ValueError(f"{name}: expected a finite number >= 0, got {v!r}")

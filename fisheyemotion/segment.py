@@ -6,6 +6,7 @@ from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
+from skimage.filters import apply_hysteresis_threshold
 from skimage.measure import label, regionprops
 
 
@@ -31,8 +32,8 @@ class Region(NamedTuple):
 
 
 def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, grid: int,
-                  min_area: int, age: NDArray | None = None,
-                  persistence: int = 1) -> tuple[NDArray[np.bool_], list[Region]]:
+                  min_area: int, age: NDArray | None = None, persistence: int = 1,
+                  seed_threshold: float = 0.0) -> tuple[NDArray[np.bool_], list[Region]]:
     """Cells above ``threshold`` grouped 8-connected; regions under ``min_area`` pixels dropped,
     and, with ``age``, regions none of whose cells has been moving ``persistence`` times.
 
@@ -48,7 +49,11 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
     mask : ndarray of bool, shape (rows, cols)
     regions : list of Region, largest first
     """
-    moving = np.nan_to_num(cell_likelihood, nan=0.0) > threshold
+    values = np.nan_to_num(cell_likelihood, nan=0.0)
+    if seed_threshold > threshold:  # hysteresis: regions need a cell above the seed threshold
+        moving = apply_hysteresis_threshold(values, threshold, seed_threshold)
+    else:
+        moving = values > threshold
     labels = label(moving, connectivity=2)
     keep = np.zeros_like(moving)
     regions = []

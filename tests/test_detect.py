@@ -211,3 +211,19 @@ def test_detect_cli_errors_are_one_line_and_exit_2(tmp_path, capsys):
     assert main(["detect", str(tmp_path / "missing.mp4"), "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "missing.mp4" in err
+
+
+def test_hysteresis_keeps_only_regions_with_a_strong_cell():
+    from fisheyemotion.segment import segment_cells
+
+    cells = np.zeros((10, 12))
+    cells[1:4, 1:4] = 0.006            # weak region
+    cells[6:9, 6:10] = 0.006           # region with one strong cell
+    cells[7, 8] = 0.05
+    plain, regions = segment_cells(cells, threshold=0.004, grid=5, min_area=0)
+    assert len(regions) == 2
+    mask, regions = segment_cells(cells, threshold=0.004, grid=5, min_area=0, seed_threshold=0.01)
+    assert len(regions) == 1 and regions[0].area == 12 * 25
+    assert mask[6:9, 6:10].all() and not mask[1:4, 1:4].any()
+    same, _ = segment_cells(cells, threshold=0.004, grid=5, min_area=0, seed_threshold=0.004)
+    np.testing.assert_array_equal(same, plain)
