@@ -34,7 +34,9 @@ ADDITIONS = {
     "+ forward-backward check": {"fb_check": True},
     "+ texture check": {"min_texture": 2.0},
     "+ frame gap 3": {"frame_gap": 3},
+    "+ temporal decay 0.3": {"temporal_decay": 0.3},
     "+ temporal persistence 2": {"persistence": 2},
+    "+ threshold 0.004": {"threshold": 0.004},
 }
 
 #: Ablation: weights (mu_e, mu_d, mu_h, mu_p) of each variant; "paper" is the configured Params.
