@@ -1,4 +1,5 @@
-"""Threshold + connected components on the grid of cell likelihoods (scikit-image)."""
+"""Threshold + connected components on the grid of cell likelihoods (scikit-image labelling;
+region properties for all labels at once with numpy and ``scipy.ndimage``)."""
 
 from __future__ import annotations
 
@@ -6,8 +7,9 @@ from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import ndimage
 from skimage.filters import apply_hysteresis_threshold
-from skimage.measure import label, regionprops
+from skimage.measure import label
 
 
 class Region(NamedTuple):
@@ -54,24 +56,33 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
         moving = apply_hysteresis_threshold(values, threshold, seed_threshold)
     else:
         moving = values > threshold
-    labels = label(moving, connectivity=2)
-    keep = np.zeros_like(moving)
+    labels, n = label(moving, connectivity=2, return_num=True)
+    if n == 0:
+        return np.zeros_like(moving), []
+    # Region properties for all labels at once (regionprops' per-region objects cost ~80 us each).
+    flat = labels.ravel()
+    cells = np.bincount(flat, minlength=n + 1)[1:]
+    rows, cols = np.indices(labels.shape)
+    mean = np.bincount(flat, weights=values.ravel(), minlength=n + 1)[1:] / cells
+    cy = np.bincount(flat, weights=rows.ravel(), minlength=n + 1)[1:] / cells
+    cx = np.bincount(flat, weights=cols.ravel(), minlength=n + 1)[1:] / cells
+    kept = cells * grid * grid >= min_area
+    if age is not None and persistence > 1:
+        oldest = np.zeros(n + 1, dtype=np.int64)
+        np.maximum.at(oldest, flat, np.asarray(age, dtype=np.int64).ravel())
+        kept &= oldest[1:] >= persistence
     regions = []
-    for prop in regionprops(labels, intensity_image=np.nan_to_num(cell_likelihood, nan=0.0)):
-        area = int(prop.area) * grid * grid
-        if area < min_area:
+    for i, box in enumerate(ndimage.find_objects(labels)):
+        if not kept[i]:
             continue
-        if age is not None and persistence > 1 and age[labels == prop.label].max() < persistence:
-            continue
-        keep[labels == prop.label] = True
-        r0, c0, r1, c1 = prop.bbox
-        cy, cx = prop.centroid
+        r0, r1, c0, c1 = box[0].start, box[0].stop, box[1].start, box[1].stop
         regions.append(Region(
-            label=len(regions) + 1,
+            label=0,
             bbox=(c0 * grid, r0 * grid, (c1 - c0) * grid, (r1 - r0) * grid),
-            area=area,
-            mean_likelihood=float(prop.intensity_mean),
-            centroid=(cx * grid + (grid - 1) / 2, cy * grid + (grid - 1) / 2),
+            area=int(cells[i]) * grid * grid,
+            mean_likelihood=float(mean[i]),
+            centroid=(float(cx[i]) * grid + (grid - 1) / 2, float(cy[i]) * grid + (grid - 1) / 2),
         ))
     regions.sort(key=lambda r: -r.area)
+    keep = np.concatenate([[False], kept])[labels]
     return keep, [r._replace(label=i + 1) for i, r in enumerate(regions)]

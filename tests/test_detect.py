@@ -227,3 +227,42 @@ def test_hysteresis_keeps_only_regions_with_a_strong_cell():
     assert mask[6:9, 6:10].all() and not mask[1:4, 1:4].any()
     same, _ = segment_cells(cells, threshold=0.004, grid=5, min_area=0, seed_threshold=0.004)
     np.testing.assert_array_equal(same, plain)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_region_properties_match_scikit_image_regionprops(seed):
+    """The vectorised region properties equal scikit-image's regionprops, region by region."""
+    from skimage.measure import label, regionprops
+
+    from fisheyemotion.segment import segment_cells
+
+    rng = np.random.default_rng(seed)
+    cells = rng.random((40, 50)) * 0.008
+    cells[rng.random(cells.shape) < 0.1] = np.nan
+    age = rng.integers(0, 4, cells.shape)
+    grid, threshold, min_area, persistence = 4, 0.004, 3 * 16, 2
+    mask, regions = segment_cells(cells, threshold=threshold, grid=grid, min_area=min_area,
+                                  age=age, persistence=persistence)
+    values = np.nan_to_num(cells, nan=0.0)
+    labels = label(values > threshold, connectivity=2)
+    expected = []
+    for prop in regionprops(labels, intensity_image=values):
+        sel = labels == prop.label
+        if prop.area * grid * grid < min_area or age[sel].max() < persistence:
+            continue
+        r0, c0, r1, c1 = prop.bbox
+        cy, cx = prop.centroid
+        expected.append((int(prop.area) * grid * grid,
+                         (c0 * grid, r0 * grid, (c1 - c0) * grid, (r1 - r0) * grid),
+                         prop.intensity_mean, cx * grid + (grid - 1) / 2,
+                         cy * grid + (grid - 1) / 2, sel))
+    assert len(regions) == len(expected) > 5
+    expected.sort(key=lambda e: (-e[0], e[1]))
+    got = sorted(regions, key=lambda r: (-r.area, r.bbox))
+    for r, (area, bbox, mean, cx, cy, _) in zip(got, expected, strict=True):
+        assert (r.area, r.bbox) == (area, bbox)
+        assert r.mean_likelihood == pytest.approx(mean, rel=1e-12)
+        assert r.centroid == pytest.approx((cx, cy), rel=1e-12)
+    np.testing.assert_array_equal(mask, np.any([e[5] for e in expected], axis=0))
+    assert [r.label for r in regions] == list(range(1, len(regions) + 1))
+    assert [r.area for r in regions] == sorted((r.area for r in regions), reverse=True)
