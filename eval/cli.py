@@ -59,12 +59,21 @@ def cmd_eval(args: argparse.Namespace) -> int:
     if args.additions:
         from .evaluate import additions_table
 
-        table = additions_table(paths, _flows(args.flow), workers=args.workers,
-                                progress=not args.quiet)
+        table, scenes = additions_table(paths, _flows(args.flow), workers=args.workers,
+                                        progress=not args.quiet, by_sequence=True)
         table.to_csv(Path(args.out) / "additions.csv", index=False)
+        scenes.to_csv(Path(args.out) / "additions_by_sequence.csv", index=False)
         md = Path(args.out) / "report.md"
+        per_scene = "".join(
+            f"\n### {label} per sequence\n\n"
+            + scenes.pivot_table(index=["flow", "variant"], columns="sequence", values=column,
+                                 sort=False).to_markdown(floatfmt=".2f") + "\n"
+            for column, label in (("detection", "Detection rate"),
+                                  ("fp_frames", "False-positive frames")))
         md.write_text(md.read_text() + "\n## The additions beyond the paper, each alone and all "
-                      "together\n\n" + table.to_markdown(index=False, floatfmt=".2f") + "\n")
+                      "together\n\n" + table.to_markdown(index=False, floatfmt=".2f") + "\n"
+                      + per_scene + "\nEvery figure per sequence (detection, coverage, "
+                      "false-positive frames and static pixels, IoU): additions_by_sequence.csv\n")
         print(table.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
     _print_table2(results)
     print(f"report: {report}")

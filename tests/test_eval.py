@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -200,7 +202,12 @@ def test_compare_models_side_by_side(tmp_path):
 def test_additions_table_has_each_addition_and_the_defaults(sequences):
     from fisheyemotion.eval.evaluate import ADDITIONS, additions_table
 
-    table = additions_table(sequences[:1], ["dis"], workers=1, progress=False)
+    table, scenes = additions_table(sequences[:1], ["dis"], workers=1, progress=False,
+                                    by_sequence=True)
+    assert len(scenes) == len(table) and set(scenes.sequence) == {Path(sequences[0]).name}
+    # One sequence: its row is the aggregate row.
+    np.testing.assert_allclose(scenes.fp_frames, table["false positives det"])
+    np.testing.assert_allclose(scenes.iou, table.iou)
     assert list(table.variant) == list(ADDITIONS) + ["all (defaults)", "all, exact flow"]
     assert list(table.flow) == ["dis"] * (len(ADDITIONS) + 1) + ["exact"]
     assert {"crossing det", "false positives cov", "iou"} <= set(table.columns)
