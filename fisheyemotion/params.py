@@ -80,7 +80,8 @@ class Params:
         Streams only: the likelihood is accumulated over frames,
         ``L = (1 - decay) L_now + decay L_before``, the previous map carried to the current frame
         by the flow. 0 keeps each frame's own likelihood (the paper); the default 0.3 lowered
-        false-positive frames (79 % -> 72-76 %) without losing a category below the paper's rate.
+        false-positive frames (79 % -> 72-76 %, measured with the visibility check on) without
+        losing a category below the paper's rate.
     persistence : int
         Streams only: a region is reported only once some of its cells have been moving in this
         many consecutive detections (carried by the flow). 1 (default) reports at once.
