@@ -7,6 +7,7 @@ Groups (peer in brackets, see report.py): detect-farneback [Farneback alone], de
 from __future__ import annotations
 
 import os
+import time
 
 import cv2
 import numpy as np
@@ -117,3 +118,28 @@ def test_stream_10000_frames(benchmark):
     benchmark.extra_info["frames"] = 10_000
     benchmark.extra_info["rss_mb_at_frame_100"] = round(rss[100], 1)
     benchmark.extra_info["rss_growth_mb_100_to_10000"] = round(rss[9_999] - rss[100], 2)
+
+
+@pytest.mark.benchmark(group="detect-interleaved")
+@pytest.mark.parametrize("pipeline", ["paper", "default"])
+def test_farneback_pipeline_interleaved_with_flow_alone(benchmark, frames, pipeline):
+    """Farneback alone and detect() timed alternately in the same rounds: their ratio without
+    the drift between groups timed minutes apart (extra_info)."""
+    fr, roi = frames
+    g0, g1 = _gray(fr[0]), _gray(fr[3])
+    params = fm.Params.paper() if pipeline == "paper" else fm.Params()
+    det = fm.MotionDetector(CAM, params=params, roi=roi)
+    times: dict[str, list[float]] = {"flow": [], "detect": []}
+
+    def pair():
+        t = time.perf_counter()
+        det._flow(g0, g1)
+        times["flow"].append(time.perf_counter() - t)
+        t = time.perf_counter()
+        det.detect(g0, g1, fr[0].pose, fr[3].pose)
+        times["detect"].append(time.perf_counter() - t)
+
+    benchmark.pedantic(pair, rounds=25, iterations=1, warmup_rounds=2)
+    flow_ms, detect_ms = (1e3 * float(np.median(times[k][2:])) for k in ("flow", "detect"))
+    benchmark.extra_info.update(flow_ms=round(flow_ms, 2), detect_ms=round(detect_ms, 2),
+                                ratio=round(detect_ms / flow_ms, 4))
