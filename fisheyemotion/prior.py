@@ -75,15 +75,6 @@ class EgoFlowPrior:
         v = np.arange(rows) * step + (step - 1) / 2
         self._pixels = np.stack(np.meshgrid(u, v), axis=-1)
         self._rays, self._valid = camera.unproject(self._pixels)
-        self._last: tuple[bytes, tuple[NDArray, NDArray]] | None = None
-
-    def _targets(self, pose0: NDArray, pose1: NDArray, road: Road):
-        key = np.asarray(pose0).tobytes() + np.asarray(pose1).tobytes() + repr(road).encode()
-        if self._last is None or self._last[0] != key:  # detect asks twice per pair
-            pixels, ok = static_scene_targets(self.camera, self._rays, pose0, pose1, road,
-                                              self.distance)
-            self._last = (key, (pixels, ok & self._valid))
-        return self._last[1]
 
     def _upsample(self, coarse: NDArray, interpolation: int) -> NDArray:
         h, w = self.camera.height, self.camera.width
@@ -108,17 +99,13 @@ class EgoFlowPrior:
         seen : ndarray of bool, shape (H, W)
             The predicted point lands on ``view`` (at the prediction grid's resolution).
         """
-        pixels, ok = self._targets(pose0, pose1, road)
+        pixels, ok = static_scene_targets(self.camera, self._rays, pose0, pose1, road,
+                                          self.distance)
+        ok &= self._valid
         flow = np.where(ok[..., None], pixels - self._pixels, 0.0).astype(np.float32)
-        return self._upsample(flow, cv2.INTER_LINEAR), self.seen(pose0, pose1, road, view=view)
-
-    def seen(self, pose0: NDArray, pose1: NDArray, road: Road, *,
-             view: NDArray[np.bool_] | None = None) -> NDArray[np.bool_]:
-        """``(H, W)`` bool: the static point of the pixel lands on ``view`` in the ``pose1``
-        frame (default: anywhere on the image), at the prediction grid's resolution."""
-        pixels, ok = self._targets(pose0, pose1, road)
         seen = lands_on(pixels, ok, view, self.camera.width, self.camera.height)
-        return self._upsample(seen.astype(np.uint8), cv2.INTER_NEAREST) > 0
+        return (self._upsample(flow, cv2.INTER_LINEAR),
+                self._upsample(seen.astype(np.uint8), cv2.INTER_NEAREST) > 0)
 
 
 def lands_on(pixels: NDArray[np.float64], ok: NDArray[np.bool_], view: NDArray[np.bool_] | None,
