@@ -165,15 +165,14 @@ class Renderer:
         """Per box: world rotation, the origin in the box frame, half sizes, and the cone (unit
         axis and cosine of the half-angle) its bounding sphere subtends from ``origin``."""
         k = len(boxes)
-        rots = np.empty((k, 3, 3))
+        rots, centres = self._box_poses(boxes)
         box_origin = np.empty((k, 3))
         halves = np.empty((k, 3))
         axis_dir = np.zeros((k, 3))
         cone_cos = np.full(k, -2.0)  # origin inside the sphere: never culled
-        for j, (box, pose) in enumerate(boxes):
-            rots[j] = pose[:3, :3]
-            offset = pose[:3, 3] - origin
-            box_origin[j] = -offset @ pose[:3, :3]
+        for j, (box, _) in enumerate(boxes):
+            offset = centres[j] - origin
+            box_origin[j] = -offset @ rots[j]
             halves[j] = np.array(box.size, float) / 2
             dist = float(np.linalg.norm(offset))
             radius = float(np.linalg.norm(halves[j]))
@@ -188,8 +187,10 @@ class Renderer:
         return pre_t, len(self.scenario.boxes) + 1, pre_local, pre_face
 
     @staticmethod
-    def _box_centres(boxes: list[tuple[Box, NDArray]]) -> NDArray[np.float64]:
-        return np.array([p[:3, 3] for _, p in boxes], float).reshape(-1, 3)
+    def _box_poses(boxes: list[tuple[Box, NDArray]]) -> tuple[NDArray, NDArray]:
+        """World rotations ``(k, 3, 3)`` and centres ``(k, 3)`` of ``boxes``."""
+        rots = np.array([p[:3, :3] for _, p in boxes], float).reshape(-1, 3, 3)
+        return rots, np.array([p[:3, 3] for _, p in boxes], float).reshape(-1, 3)
 
     def _body_hits(self, rays_cam: NDArray) -> tuple[NDArray, NDArray, NDArray] | None:
         """The ego body's hits for camera-frame rays (the same in every frame)."""
@@ -267,7 +268,7 @@ class Renderer:
         prev = self.hits(index - gap)
         pose1 = sc.world_from_cam(index)
         boxes = self._boxes_at(sc.time(index))
-        rots, centres = self._box_arrays(pose1[:3, 3], boxes)[0], self._box_centres(boxes)
+        rots, centres = self._box_poses(boxes)
         rays = np.empty_like(prev.local)
         _raycast.seen_from(prev.obj, prev.local, rots, centres, pose1[:3, 3],
                            np.ascontiguousarray(pose1[:3, :3]), rays)
