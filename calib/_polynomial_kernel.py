@@ -115,7 +115,7 @@ def unproject_polynomial(pixels, fx, fy, cx, cy, c, dc, theta_max, r_max, table,
         valid[i] = True
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(**_JIT)
 def project_polynomial(rays, fx, fy, cx, cy, c, theta_max, pixels, valid):
     """Fill ``pixels`` (N, 2) and ``valid`` (N,) for ``rays`` (N, 3); NaN pixels where invalid
     (non-finite or zero rays, rays beyond ``theta_max``)."""
