@@ -289,26 +289,25 @@ class CameraModel:
         self, p: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
         c, _ = self._polynomial_tuples
-        flat = np.ascontiguousarray(p.reshape(-1, 3))
-        pixels = np.empty((len(flat), 2))
-        valid = np.empty(len(flat), dtype=bool)
-        fx, fy, cx, cy = self._affine()
-        _polynomial_kernel.project_polynomial(flat, fx, fy, cx, cy, c, self.theta_max, pixels, valid)
-        return pixels.reshape(p.shape[:-1] + (2,)), valid.reshape(p.shape[:-1])
+        return self._run_kernel(_polynomial_kernel.project_polynomial, p, 2, c, self.theta_max)
 
     def _unproject_polynomial(
         self, q: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
         c, dc = self._polynomial_tuples
-        flat = np.ascontiguousarray(q.reshape(-1, 2))
-        rays = np.empty((len(flat), 3))
+        return self._run_kernel(_polynomial_kernel.unproject_polynomial, q, 3, c, dc,
+                                self.theta_max, self.radius_max, self._theta_table)
+
+    def _run_kernel(self, kernel, points: NDArray[np.float64], out_dim: int, *args
+                    ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """``kernel(points (N, d), fx, fy, cx, cy, *args, out (N, out_dim), valid (N,))`` over
+        any leading shape of ``points``."""
+        flat = np.ascontiguousarray(points.reshape(-1, points.shape[-1]))
+        out = np.empty((len(flat), out_dim))
         valid = np.empty(len(flat), dtype=bool)
-        fx, fy, cx, cy = self._affine()
-        _polynomial_kernel.unproject_polynomial(
-            flat, fx, fy, cx, cy, c, dc, self.theta_max, self.radius_max, self._theta_table,
-            rays, valid,
-        )
-        return rays.reshape(q.shape[:-1] + (3,)), valid.reshape(q.shape[:-1])
+        kernel(flat, *self._affine(), *args, out, valid)
+        lead = points.shape[:-1]
+        return out.reshape(lead + (out_dim,)), valid.reshape(lead)
 
     # ---- image-level helpers ---------------------------------------------------------------
     @cached_property
