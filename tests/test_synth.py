@@ -44,25 +44,34 @@ def test_wide_double_sphere_sees_more_than_180_degrees():
     assert WIDE_DS.fov_deg > 180
 
 
-def test_static_points_land_where_the_camera_model_projects_them(crossing):
-    sc, r, frames = crossing
-    rng = np.random.default_rng(0)
+def _static_samples(renderer, later, seed):
+    """3000 random valid pixels of frame 0 that see static surfaces: the pixels, their 3-D
+    points, their (v, u) indices, and where ``camera.project`` puts the points in frame
+    ``later`` (pixels, valid)."""
+    sc = renderer.scenario
+    rng = np.random.default_rng(seed)
     v, u = np.nonzero(KB.valid_pixel_mask())
     pick = rng.choice(len(u), 3000, replace=False)
     pixels = np.stack([u[pick], v[pick]], -1).astype(float)
-    x0, hits, _ = _world_points(r, 0, pixels)
+    x0, hits, _ = _world_points(renderer, 0, pixels)
     static = (hits.obj == 0) | np.isin(hits.obj, [i + 1 for i, b in enumerate(sc.boxes) if not b.moving])
     static &= np.isfinite(hits.t)
-    pose1 = sc.world_from_cam(1)
-    projected, ok = KB.project((x0[static] - pose1[:3, 3]) @ pose1[:3, :3])
+    pose = sc.world_from_cam(later)
+    projected, ok = KB.project((x0[static] - pose[:3, 3]) @ pose[:3, :3])
+    return pixels[static], x0[static], (v[pick][static], u[pick][static]), projected, ok
+
+
+def test_static_points_land_where_the_camera_model_projects_them(crossing):
+    sc, r, frames = crossing
+    pixels, x0, vu, projected, ok = _static_samples(r, 1, 0)
     # The renderer's flow says where each pixel goes; it must agree with camera.project.
-    flow = frames[1].flow[v[pick][static], u[pick][static]]
+    flow = frames[1].flow[vu]
     good = ok & np.isfinite(flow).all(axis=1)
     assert good.sum() > 1000
-    np.testing.assert_allclose(pixels[static][good] + flow[good], projected[good], atol=1e-6)
+    np.testing.assert_allclose(pixels[good] + flow[good], projected[good], atol=1e-6)
     # And a fresh ray cast at the new pixel finds the same 3-D point (where not occluded).
     x1, hits1, _ = _world_points(r, 1, projected[good])
-    same = np.linalg.norm(x1 - x0[static][good], axis=1) < 1e-6
+    same = np.linalg.norm(x1 - x0[good], axis=1) < 1e-6
     body = hits1.obj == len(sc.boxes) + 1  # the ego vehicle's body now hides the point
     assert same[~body].mean() > 0.97
 
@@ -226,20 +235,12 @@ def test_cast_finds_the_nearest_surface_of_every_ray(name):
 
 @pytest.mark.parametrize("gap", [2, 3])
 def test_flow_over_a_gap_lands_where_the_camera_model_projects_static_points(crossing, gap):
-    sc, r, _ = crossing
-    rng = np.random.default_rng(gap)
-    v, u = np.nonzero(KB.valid_pixel_mask())
-    pick = rng.choice(len(u), 3000, replace=False)
-    pixels = np.stack([u[pick], v[pick]], -1).astype(float)
-    x0, hits, _ = _world_points(r, 0, pixels)
-    static = (hits.obj == 0) | np.isin(hits.obj, [i + 1 for i, b in enumerate(sc.boxes) if not b.moving])
-    static &= np.isfinite(hits.t)
-    pose = sc.world_from_cam(gap)
-    projected, ok = KB.project((x0[static] - pose[:3, 3]) @ pose[:3, :3])
-    flow = r.flow(gap, gap=gap)[v[pick][static], u[pick][static]]
+    _, r, _ = crossing
+    pixels, _, vu, projected, ok = _static_samples(r, gap, gap)
+    flow = r.flow(gap, gap=gap)[vu]
     good = ok & np.isfinite(flow).all(axis=1)
     assert good.sum() > 1000
-    np.testing.assert_allclose(pixels[static][good] + flow[good], projected[good], atol=1e-6)
+    np.testing.assert_allclose(pixels[good] + flow[good], projected[good], atol=1e-6)
 
 
 def test_flow_gap_is_checked(crossing):
