@@ -70,8 +70,8 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
                       ablation: bool = True, exact_flow: bool = False) -> SequenceResult:
     """Detect on every consecutive frame pair of a sequence folder and score it.
 
-    Detections on pair ``(k - gap, k)`` live on frame ``k - gap``'s pixels (``u' = u + flow``), so
-    they are scored against that frame's ground truth (``gap = params.frame_gap``).
+    The detection on pair ``(k - gap, k)`` is on frame ``k``'s pixels (``gap = params.frame_gap``),
+    as a user draws it, and is scored against frame ``k``'s ground truth.
 
     ``exact_flow=True`` replaces the flow method by the exact flow of the rendered scene
     (re-cast from the folder's ``scenario.yaml``): what the constraints do with perfect
@@ -104,15 +104,15 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
         else:
             flow, backward = main.flow(g0, g1, pose0, pose1), None
         det = main.detect_flow(flow, pose0, pose1, backward=backward, prev=g0, stream=True)
-        ids, gt = seq.ids(k - gap), seq.mask(k - gap)
-        frame_objects = objects[objects.frame == k - gap]
+        ids, gt = seq.ids(k), seq.mask(k)
+        frame_objects = objects[objects.frame == k]
         rows = object_metrics(det.mask, ids, frame_objects, range_limit=range_limit,
                               min_coverage=min_coverage)
         weighted = {n: w * det.maps[n] for n, w in zip(CONSTRAINT_NAMES, params.weights,
                                                        strict=True)}
         for r in rows:
             pix = ids == r["id"]
-            r.update({"sequence": seq.name, "frame": k - gap})
+            r.update({"sequence": seq.name, "frame": k})
             r.update({f"c_{n}": float(weighted[n][pix].mean()) for n in CONSTRAINT_NAMES})
             score = r["pixels"]  # the largest view of each category, detected or not
             if score > examples.get(r["category"], (0,))[0]:
@@ -120,7 +120,7 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
         obj_rows += rows
         fm = frame_metrics(det.mask, gt, valid)
         fp_pix = (det.mask > 0) & (gt == 0) & valid
-        fm.update({"sequence": seq.name, "frame": k - gap, "ego_static": det.static_camera})
+        fm.update({"sequence": seq.name, "frame": k, "ego_static": det.static_camera})
         fm.update({f"fp_{n}": float(weighted[n][fp_pix].sum()) for n in CONSTRAINT_NAMES})
         frame_rows.append(fm)
         m_above, s_above = likelihood_histograms(det.likelihood, gt, valid)

@@ -165,7 +165,7 @@ def fig6_grid(results: list[SequenceResult], params: Params) -> Figure | None:
         seq = Sequence(path)
         det = MotionDetector(seq.camera, params=params, roi=seq.roi()).detect(
             seq.frame(k - gap), seq.frame(k), seq.poses[k - gap], seq.poses[k])
-        cols.append((seq.frame(k - gap), det, f"{cat} ({seq.name} #{k - gap})"))
+        cols.append((seq.frame(k), det, f"{cat} ({seq.name} #{k})"))
     return draw.fig6(cols, saturation=params.saturation) if cols else None
 
 

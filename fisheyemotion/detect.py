@@ -21,18 +21,20 @@ from numpy.typing import NDArray
 from .calib.base import CameraModel, pixel_grid
 from .calib.transforms import check_rigid
 from .constraints import ConstraintResult, constraints
-from .flow import FlowEstimator, grid_average, grid_centres, grid_upsample
+from .flow import FlowEstimator, grid_average, grid_centres, grid_gather, grid_transfer, grid_upsample
 from .frames import to_gray
 from .params import Params
 from .prior import EgoFlowPrior, lands_on, static_scene_targets
 from .road import Road
 from .segment import Region, segment_cells
+from .static_scene import StaticScene
 
 CONSTRAINT_NAMES = ("epipolar", "depth", "height", "antiparallel")
 
 
 class Grid(NamedTuple):
-    """Cell-level data of one detection (``rows x cols`` cells of ``size`` pixels).
+    """Cell-level measurement of one detection (``rows x cols`` cells of ``size`` pixels) on the
+    *previous* frame, where the flow starts.
 
     Attributes
     ----------
@@ -42,7 +44,8 @@ class Grid(NamedTuple):
     flow : ndarray, shape (rows, cols, 2)
         Mean flow of each cell; ``u' = u + flow``.
     likelihood : ndarray, shape (rows, cols)
-        NaN where the cell is not valid.
+        The frame pair's own likelihood (before any temporal filtering); NaN where the cell is
+        not valid.
     valid : ndarray of bool, shape (rows, cols)
     """
 
@@ -74,6 +77,12 @@ class LazyMaps(Mapping):
 @dataclass(frozen=True, eq=False)
 class Detection:
     """Result of :func:`detect`; unpacks as ``likelihood, mask``.
+
+    ``likelihood``, ``mask``, ``maps`` and ``regions`` are on the pixels of the *current* frame
+    (``curr``, or the frame just passed to :meth:`MotionDetector.apply`), as with cv2's
+    background subtractors: the flow is measured from the previous frame's cells and every cell
+    is carried along its flow to where it lands now. ``flow`` and ``grid`` stay on the previous
+    frame, where they were measured.
 
     Attributes
     ----------
@@ -154,6 +163,9 @@ class MotionDetector:
         self._flow = FlowEstimator(self.params)
         self._prior = (EgoFlowPrior(camera, distance=self.params.prior_distance)
                        if self.params.flow_prior != "none" else None)
+        self.scene = (StaticScene(camera, memory=self.params.scene_memory,
+                                  far=self.params.prior_distance)
+                      if self.params.scene_prior and self._prior is not None else None)
         self._pixel_coords = None
         self._view: NDArray[np.bool_] | None = None
         self._temporal: tuple[NDArray, NDArray] | None = None
@@ -195,6 +207,8 @@ class MotionDetector:
         """Forget the stream's previous frames and its temporal state."""
         self._history.clear()
         self._temporal = None
+        if self.scene is not None:
+            self.scene.clear()
 
     def detect_flow(self, flow: NDArray, pose0: NDArray, pose1: NDArray, *,
                     backward: NDArray | None = None, prev: NDArray | None = None,
@@ -234,7 +248,8 @@ class MotionDetector:
         mode = self.params.flow_prior
         if mode == "none":
             return self._flow(a, b)
-        prior, seen = self._prior(pose_a, pose_b, self.road, view=self._pixel_valid)
+        prior, seen = self._prior(pose_a, pose_b, self.road, view=self._pixel_valid,
+                                  scene=self.scene)
         if mode == "ego":
             return self._flow(a, b, prior)
         maps = self._coords() + prior
@@ -311,6 +326,10 @@ class MotionDetector:
             valid &= self._consistent_cells(flow, cell_flow, backward)
         if p.min_texture > 0 and gray is not None:
             valid &= self._textured_cells(gray)
+        if stream and self.scene is not None and not res.static_camera:
+            with np.errstate(invalid="ignore"):
+                static = valid & (res.likelihood < p.threshold)
+            self.scene.add(self._rays0, rays1, t0, t1, static)
         return self._assemble(flow, cell_flow, res, valid, stream=stream)
 
     def _carry(self, cells: NDArray, cell_flow: NDArray) -> NDArray:
@@ -340,17 +359,26 @@ class MotionDetector:
     def _assemble(self, flow, cell_flow, res: ConstraintResult, valid, *,
                   stream: bool = False) -> Detection:
         p, (w, h) = self.params, self.size
+        measured = np.where(valid, res.likelihood, np.nan)
+        # The measurement lives on the previous frame's cells; the result belongs to the current
+        # frame: every cell moves by its flow (the most likely one wins where several land).
+        source = grid_transfer(cell_flow, measured, p.grid)
+        valid_now = grid_gather(valid, source, False)
 
         def to_image(cells: NDArray[np.float64]) -> NDArray[np.float32]:
-            full = grid_upsample(np.where(valid, cells, 0.0).astype(np.float32), p.grid, w, h)
+            full = grid_upsample(np.where(valid_now, cells, 0.0).astype(np.float32), p.grid, w, h)
             full[~self._pixel_valid] = 0
             return full
 
-        cell_likelihood = np.where(valid, res.likelihood, np.nan)
-        maps = LazyMaps({name: getattr(res, name) for name in CONSTRAINT_NAMES}, to_image)
+        def now(cells: NDArray[np.float64]) -> NDArray[np.float64]:
+            return grid_gather(cells, source)
+
+        cell_likelihood = now(measured)
+        maps = LazyMaps({name: now(getattr(res, name)) for name in CONSTRAINT_NAMES}, to_image)
         age = None
         if stream and (p.temporal_decay > 0 or p.persistence > 1):
-            cell_likelihood, age = self._temporal_filter(cell_likelihood, cell_flow)
+            moved = np.nan_to_num(grid_gather(cell_flow, source), nan=0.0)
+            cell_likelihood, age = self._temporal_filter(cell_likelihood, moved)
         likelihood = to_image(np.nan_to_num(cell_likelihood, nan=0.0))
         cell_mask, regions = segment_cells(cell_likelihood, threshold=p.threshold, grid=p.grid,
                                            min_area=p.min_area, age=age,
@@ -358,7 +386,7 @@ class MotionDetector:
                                            seed_threshold=p.seed_threshold)
         mask = grid_upsample(cell_mask.astype(np.uint8) * 255, p.grid, w, h)
         mask[~self._pixel_valid] = 0
-        grid = Grid(p.grid, self._centres, cell_flow, cell_likelihood, valid)
+        grid = Grid(p.grid, self._centres, cell_flow, measured, valid)
         return Detection(likelihood, mask, maps, flow, grid, regions, res.static_camera)
 
 

@@ -82,3 +82,62 @@ def grid_upsample(cells: NDArray, grid: int, width: int, height: int) -> NDArray
     full = np.repeat(np.repeat(cells, grid, axis=0), grid, axis=1)
     pad = [(0, height - full.shape[0]), (0, width - full.shape[1])] + [(0, 0)] * (cells.ndim - 2)
     return np.pad(full, pad, mode="edge") if any(p[1] for p in pad) else full
+
+
+def grid_transfer(cell_flow: NDArray, order: NDArray, grid: int) -> NDArray[np.intp]:
+    """Which cell of the first frame lands on each cell of the second, by the cells' flow.
+
+    Every cell ``(r, c)`` of the first frame is moved by its flow ``cell_flow[r, c]``; the cell
+    of the second frame its centre lands in takes it. Where several land on one cell, the one
+    with the largest ``order`` wins; a cell on which none lands takes, from its 8 neighbours,
+    the source with the largest ``order`` (gaps where a region expands), else none.
+
+    Parameters
+    ----------
+    cell_flow : ndarray, shape (rows, cols, 2)
+        NaN where a cell has no flow.
+    order : ndarray, shape (rows, cols)
+        Priority (e.g. the likelihood); NaN ranks lowest.
+    grid : int
+
+    Returns
+    -------
+    ndarray of intp, shape (rows, cols)
+        Flat index of the source cell, -1 where none.
+    """
+    rows, cols = order.shape
+    centres = grid_centres(cols * grid, rows * grid, grid)
+    target = centres + cell_flow
+    with np.errstate(invalid="ignore"):
+        c = np.floor(target[..., 0] / grid)
+        r = np.floor(target[..., 1] / grid)
+        ok = (c >= 0) & (c < cols) & (r >= 0) & (r < rows)
+    rank = np.nan_to_num(order, nan=-np.inf).ravel()
+    src = np.flatnonzero(ok.ravel())
+    src = src[np.argsort(rank[src], kind="stable")]  # the largest last: it wins the assignment
+    dest = (r.ravel()[src] * cols + c.ravel()[src]).astype(np.intp)
+    out = np.full(rows * cols, -1, np.intp)
+    out[dest] = src
+    out = out.reshape(rows, cols)
+    empty = out < 0
+    if empty.any():
+        padded = np.pad(out, 1, constant_values=-1)
+        best, best_rank = np.full_like(out, -1), np.full(out.shape, -np.inf)
+        for dr in (0, 1, 2):
+            for dc in (0, 1, 2):
+                cand = padded[dr:dr + rows, dc:dc + cols]
+                cand_rank = np.where(cand >= 0, rank[cand], -np.inf)
+                better = (cand >= 0) & (cand_rank >= best_rank) & ((cand_rank > best_rank) | (best < 0))
+                best = np.where(better, cand, best)
+                best_rank = np.where(better, cand_rank, best_rank)
+        out = np.where(empty, best, out)
+    return out
+
+
+def grid_gather(cells: NDArray, source: NDArray[np.intp], fill=np.nan) -> NDArray:
+    """``cells`` (rows, cols, ...) rearranged by a :func:`grid_transfer` map; ``fill`` (of the
+    cells' dtype) where there is no source."""
+    rows, cols = source.shape
+    out = cells.reshape(rows * cols, *cells.shape[2:])[np.maximum(source, 0)]
+    out[source < 0] = fill
+    return out

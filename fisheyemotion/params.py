@@ -64,6 +64,13 @@ class Params:
         estimate. ``warp``: the current frame is warped back by it and the flow method only
         measures the residual (removing large displacements *and* the fisheye/perspective
         deformation of the road); flow = prior + residual.
+    scene_prior : bool
+        Streams only: warp by the static-scene model as well (:mod:`fisheyemotion.static_scene`):
+        the points earlier detections judged static give the prior's range along each ray, so
+        that buildings, walls, parked cars and poles get a small residual too, not only the
+        road. The road plane and ``prior_distance`` remain the prior where nothing is known.
+    scene_memory : int
+        Detections whose static points the scene model keeps.
     prior_distance : float
         Metres, for the ego prior's rays that do not meet the road closer than that (the default,
         1 km, stands for infinity: the sky and distant structure move with the rotation only;
@@ -134,6 +141,8 @@ class Params:
     dis_preset: str = "medium"
     flow_prior: str = "warp"
     prior_distance: float = 1000.0
+    scene_prior: bool = True
+    scene_memory: int = 3
     frame_gap: int = 3
     min_texture: float = 2.0
     temporal_decay: float = 0.3
@@ -172,11 +181,12 @@ class Params:
                 raise ValueError(f"{name}: expected one of {', '.join(options)}, got {getattr(self, name)!r}")
         if not _finite(self.temporal_decay) or not 0 <= self.temporal_decay < 1:
             raise ValueError(f"temporal_decay: expected a number in [0, 1), got {self.temporal_decay!r}")
-        for name, low in (("grid", 1), ("min_area", 0), ("frame_gap", 1), ("persistence", 1)):
+        for name, low in (("grid", 1), ("min_area", 0), ("frame_gap", 1), ("persistence", 1),
+                          ("scene_memory", 1)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
-        for name in ("depth_both_views", "fb_check", "visibility_check"):
+        for name in ("depth_both_views", "fb_check", "visibility_check", "scene_prior"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}: expected a bool, got {getattr(self, name)!r}")
         fb = dict(self.farneback) if isinstance(self.farneback, dict) else None
@@ -191,7 +201,8 @@ class Params:
         forward-backward or texture check (the defaults add some of these, as chosen by
         ``docs/evaluation.md``). The paper does not state its likelihood threshold; this uses
         0.005."""
-        return cls(**{"flow_prior": "none", "fb_check": False, "frame_gap": 1, "min_texture": 0.0,
+        return cls(**{"flow_prior": "none", "scene_prior": False, "fb_check": False,
+                      "frame_gap": 1, "min_texture": 0.0,
                       "visibility_check": False, "threshold": 0.005, "temporal_decay": 0.0,
                       **changes})
 

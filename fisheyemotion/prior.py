@@ -14,26 +14,38 @@ from __future__ import annotations
 import cv2
 import numpy as np
 from numpy.typing import NDArray
+from scipy import ndimage
 
 from .calib.base import CameraModel
 from .road import Road
+from .static_scene import StaticScene
 
 #: Rays closer than this to the horizon (sine) use the fixed distance.
 _HORIZON_SIN = 0.02
 
+#: A range measured static replaces the road/far-field guess only where it is nearer than this
+#: fraction of it (something stands in front of the road or the far field); on the road itself
+#: the plane is better than any triangulation.
+OCCLUDER_RATIO = 0.8
+
 
 def static_scene_targets(camera: CameraModel, rays: NDArray[np.float64], pose0: NDArray,
-                         pose1: NDArray, road: Road, distance: float
+                         pose1: NDArray, road: Road, distance: float,
+                         ranges: NDArray[np.float64] | None = None
                          ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
     """Where the static scene seen along ``rays`` of the ``pose0`` camera is seen from ``pose1``.
 
-    The scene point is the road point of the ray (below the horizon, closer than ``distance``)
-    or the point at ``distance`` metres.
+    The scene point is the road point of the ray (below the horizon, closer than ``distance``),
+    else the point at ``distance`` metres, unless ``ranges`` knows a point clearly nearer
+    (``OCCLUDER_RATIO``) along the ray: then that one.
 
     Parameters
     ----------
     rays : ndarray, shape (..., 3)
         Camera-frame rays of the ``pose0`` camera (NaN where invalid).
+    ranges : ndarray, shape (...), optional
+        Metres along each ray to a point measured static (NaN where unknown); see
+        :class:`fisheyemotion.static_scene.StaticScene`.
 
     Returns
     -------
@@ -48,6 +60,9 @@ def static_scene_targets(camera: CameraModel, rays: NDArray[np.float64], pose0: 
     with np.errstate(invalid="ignore", divide="ignore"):
         to_road = np.where((down > _HORIZON_SIN) & (height > 0), height / down, np.inf)
     depth = np.minimum(to_road, distance)
+    if ranges is not None:
+        with np.errstate(invalid="ignore"):
+            depth = np.where(ranges < OCCLUDER_RATIO * depth, ranges, depth)
     points = centre0 + depth[..., None] * dirs
     return camera.project((points - pose1[:3, 3]) @ pose1[:3, :3])
 
@@ -83,7 +98,7 @@ class EgoFlowPrior:
         return full[:h, :w]
 
     def __call__(self, pose0: NDArray, pose1: NDArray, road: Road, *,
-                 view: NDArray[np.bool_] | None = None
+                 view: NDArray[np.bool_] | None = None, scene: StaticScene | None = None
                  ) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
         """The predicted flow from the ``pose0`` frame to the ``pose1`` frame, and where it is seen.
 
@@ -91,18 +106,26 @@ class EgoFlowPrior:
         ----------
         view : ndarray of bool, shape (H, W), optional
             Usable pixels of the ``pose1`` frame (default: the whole image).
+        scene : StaticScene, optional
+            Points measured static so far: their ranges replace the road/far-field guess.
 
         Returns
         -------
         flow : ndarray of float32, shape (H, W, 2)
-            0 where the static point leaves the camera's domain.
+            Where the static point leaves the camera's domain (no target pixel), the flow of the
+            nearest sample that has one: continued, never 0, so that the correspondence lands
+            outside the image or the domain and the cell is not scored.
         seen : ndarray of bool, shape (H, W)
             The predicted point lands on ``view`` (at the prediction grid's resolution).
         """
+        ranges = None if scene is None else scene.ranges(pose0, self._rays, self.step)
         pixels, ok = static_scene_targets(self.camera, self._rays, pose0, pose1, road,
-                                          self.distance)
+                                          self.distance, ranges)
         ok &= self._valid
         flow = np.where(ok[..., None], pixels - self._pixels, 0.0).astype(np.float32)
+        if ok.any() and not ok.all():
+            _, (r, c) = ndimage.distance_transform_edt(~ok, return_indices=True)
+            flow = flow[r, c]
         seen = lands_on(pixels, ok, view, self.camera.width, self.camera.height)
         return (self._upsample(flow, cv2.INTER_LINEAR),
                 self._upsample(seen.astype(np.uint8), cv2.INTER_NEAREST) > 0)

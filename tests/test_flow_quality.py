@@ -70,7 +70,10 @@ def test_forward_backward_check_invalidates_inconsistent_cells(road_frames):
 
 def test_frame_gap_streams_compare_with_the_frame_gap_calls_ago(road_frames):
     _, frames = road_frames
-    params = fm.Params(flow="dis", dis_preset="fast", frame_gap=2, temporal_decay=0.0)
+    # No state carried between detections (temporal decay, scene prior): the stream's result is
+    # the pair's.
+    params = fm.Params(flow="dis", dis_preset="fast", frame_gap=2, temporal_decay=0.0,
+                       scene_prior=False)
     det = fm.MotionDetector(CAM, params=params)
     out = [det.apply(f.image, f.pose) for f in frames]
     assert out[0] is None and out[1] is None and out[2] is not None

@@ -1,0 +1,182 @@
+"""The static-scene model of a stream: world points already judged static, carried to the next pair.
+
+The ego prior (:mod:`fisheyemotion.prior`) predicts the flow a static scene would have. With only
+the road plane and a far field to go on, that prediction is right on the road and the sky but
+off by 10-70 px on buildings, walls, parked cars and poles close to the road, and the flow method
+does not recover so large a residual. A stream has already measured those surfaces: every cell
+it scored as static gives, by triangulation, a world point. This module keeps the points of the
+last few detections and gives, for the rays of the next pair's first camera, the range of the
+nearest such point, which the prior then uses instead of the road/far-field guess.
+
+Triangulation
+-------------
+Rays ``p`` (from the previous centre ``C``) and ``p'`` (from the current centre ``C'``), in the
+world frame, unit length; ``d = C' - C``, ``a = p . p'``. The range along ``p`` of the point
+nearest to both rays (midpoint method) is::
+
+    lambda = (d . p - a (d . p')) / (1 - a^2)
+
+Valid where ``lambda > 0`` and the rays' angle (the parallax) is at least ``min_parallax``: below
+it the range is mostly flow noise, and the prediction hardly depends on it anyway. Ranges beyond
+``far`` metres are clipped to ``far`` (the rotation alone then explains the flow).
+
+Splatting
+---------
+Stored points are projected into the camera whose rays are asked for and binned to the prior's
+coarse samples (``step`` pixels); each sample takes the median range of its points (robust to the
+odd wrong flow, which a nearest-point z-buffer would keep). Samples with no point but a neighbour
+that has one take the nearest neighbouring range; the rest stay NaN, and the prior uses the road
+plane or the far field there. The prior uses a stored range only where it is clearly nearer than
+the road or the far field (``prior.OCCLUDER_RATIO``): on the road itself, the plane is better
+than any triangulation.
+
+Moving objects are excluded by the detector (only cells below its threshold are added); a cell
+misjudged static adds a wrong point that leaves the memory after ``memory`` detections. The
+prior only steers the flow method: the flow it returns still measures the real displacement.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import ndimage
+
+from .calib.base import CameraModel
+
+__all__ = ["StaticScene", "triangulate_range"]
+
+_DEGENERATE = 1e-9
+
+
+def triangulate_range(rays0: NDArray[np.float64], rays1: NDArray[np.float64], pose0: NDArray,
+                      pose1: NDArray, *, far: float, min_parallax: float = 0.0
+                      ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """Range along ``rays0`` of the point seen along ``rays0`` from ``pose0`` and ``rays1`` from
+    ``pose1`` (midpoint method).
+
+    Parameters
+    ----------
+    rays0, rays1 : ndarray, shape (..., 3)
+        Unit rays, each in its own camera frame (NaN where invalid).
+    pose0, pose1 : ndarray, shape (4, 4)
+        ``world_from_cam``.
+    far : float
+        Ranges beyond this (and parallel rays) are clipped to it.
+    min_parallax : float
+        Radians; rays closer in angle than this are not valid.
+
+    Returns
+    -------
+    range : ndarray, shape (...)
+        Metres from ``pose0``'s centre; NaN where not valid.
+    valid : ndarray of bool, shape (...)
+        Finite rays at least ``min_parallax`` apart triangulating in front of the first camera
+        (or parallel, when ``min_parallax`` is 0: ``far``).
+    """
+    p = rays0 @ pose0[:3, :3].T
+    q = rays1 @ pose1[:3, :3].T
+    d = pose1[:3, 3] - pose0[:3, 3]
+    a = np.einsum("...i,...i->...", p, q)
+    dp, dq = p @ d, q @ d
+    den = 1.0 - a * a
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lam = np.where(den > _DEGENERATE, (dp - a * dq) / den, np.inf)
+        valid = np.isfinite(a) & (lam > 0) & (den >= np.sin(min_parallax) ** 2)
+        lam = np.where(valid, np.minimum(lam, far), np.nan)
+    return lam, valid
+
+
+class StaticScene:
+    """World points a stream has judged static, kept for the next frame pairs.
+
+    Parameters
+    ----------
+    camera : CameraModel
+    memory : int
+        Detections whose points are kept (newest first).
+    far : float
+        Metres; triangulated ranges are clipped to this.
+    min_parallax : float
+        Radians; correspondences with less parallax are not triangulated.
+    """
+
+    def __init__(self, camera: CameraModel, *, memory: int = 3, far: float = 1000.0,
+                 min_parallax: float = np.radians(0.5)) -> None:
+        self.camera, self.far, self.min_parallax = camera, float(far), float(min_parallax)
+        self._sets: deque[NDArray[np.float64]] = deque(maxlen=int(memory))
+
+    def __len__(self) -> int:
+        """Stored points."""
+        return sum(len(s) for s in self._sets)
+
+    def clear(self) -> None:
+        self._sets.clear()
+
+    def add(self, rays0: NDArray[np.float64], rays1: NDArray[np.float64], pose0: NDArray,
+            pose1: NDArray, static: NDArray[np.bool_]) -> int:
+        """Triangulate the correspondences marked ``static`` and keep their world points.
+
+        Parameters
+        ----------
+        rays0, rays1 : ndarray, shape (..., 3)
+            Rays of the previous and current frame, in their camera frames.
+        static : ndarray of bool, shape (...)
+            Correspondences judged static (valid and below the detection threshold).
+
+        Returns
+        -------
+        int
+            Points added.
+        """
+        lam, ok = triangulate_range(rays0, rays1, pose0, pose1, far=self.far,
+                                    min_parallax=self.min_parallax)
+        ok &= static
+        points = pose0[:3, 3] + lam[ok][:, None] * (rays0[ok] @ pose0[:3, :3].T)
+        self._sets.appendleft(points)
+        return len(points)
+
+    def ranges(self, pose: NDArray, rays: NDArray[np.float64], step: int) -> NDArray[np.float64]:
+        """Range of the nearest stored point along each of a coarse grid of ``rays``.
+
+        Parameters
+        ----------
+        pose : ndarray, shape (4, 4)
+            ``world_from_cam`` of the camera the rays belong to.
+        rays : ndarray, shape (rows, cols, 3)
+            Rays of the samples at pixels ``step * j + (step - 1) / 2``.
+        step : int
+
+        Returns
+        -------
+        ndarray, shape (rows, cols)
+            Metres; NaN where no stored point falls in or next to the sample's cell.
+        """
+        rows, cols = rays.shape[:2]
+        out = np.full(rows * cols, np.inf)
+        if len(self):
+            points = np.concatenate(list(self._sets))
+            local = (points - pose[:3, 3]) @ pose[:3, :3]
+            pix, ok = self.camera.project(local)
+            rng = np.linalg.norm(local, axis=-1)[ok]
+            c = np.floor(pix[ok, 0] / step).astype(np.intp)
+            r = np.floor(pix[ok, 1] / step).astype(np.intp)
+            inside = (c >= 0) & (c < cols) & (r >= 0) & (r < rows)
+            cell, rng = r[inside] * cols + c[inside], rng[inside]
+            if len(cell):
+                # Median range per sample: sort by (sample, range), take each run's middle.
+                order = np.lexsort((rng, cell))
+                cell, rng = cell[order], rng[order]
+                starts = np.flatnonzero(np.r_[True, cell[1:] != cell[:-1]])
+                counts = np.diff(np.r_[starts, len(cell)])
+                out[cell[starts]] = rng[starts + counts // 2]
+        out = out.reshape(rows, cols)
+        known = np.isfinite(out)
+        if known.any() and not known.all():
+            # Fill one-sample holes from the nearest neighbour (the z-buffer leaves gaps where the
+            # points of a 5-px grid fall unevenly on the prior's samples).
+            near = ndimage.grey_erosion(out, size=(3, 3), mode="nearest")
+            out = np.where(known, out, near)
+        out[~np.isfinite(out)] = np.nan
+        return out
