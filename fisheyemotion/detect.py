@@ -17,19 +17,24 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 from numpy.typing import NDArray
+from scipy import ndimage
 
 from .calib.base import CameraModel, pixel_grid
 from .calib.transforms import check_rigid
 from .constraints import ConstraintResult, constraints
 from .flow import FlowEstimator, grid_average, grid_centres, grid_gather, grid_transfer, grid_upsample
 from .frames import to_gray
+from .ground_contact import standing_regions
 from .params import Params
 from .prior import EgoFlowPrior, lands_on, static_scene_targets
 from .road import Road
 from .segment import Region, segment_cells
-from .static_scene import StaticScene
+from .static_scene import TRIANGULATION_PARALLAX, StaticScene, triangulate_range
 
 CONSTRAINT_NAMES = ("epipolar", "depth", "height", "antiparallel")
+
+#: Relative range difference within which a cell agrees with the static-scene model.
+SCENE_AGREEMENT = 0.05
 
 
 class Grid(NamedTuple):
@@ -163,8 +168,7 @@ class MotionDetector:
         self._flow = FlowEstimator(self.params)
         self._prior = (EgoFlowPrior(camera, distance=self.params.prior_distance)
                        if self.params.flow_prior != "none" else None)
-        self.scene = (StaticScene(camera, memory=self.params.scene_memory,
-                                  far=self.params.prior_distance)
+        self.scene = (StaticScene(camera, memory=self.params.scene_memory)
                       if self.params.scene_prior and self._prior is not None else None)
         self._pixel_coords = None
         self._view: NDArray[np.bool_] | None = None
@@ -326,11 +330,40 @@ class MotionDetector:
             valid &= self._consistent_cells(flow, cell_flow, backward)
         if p.min_texture > 0 and gray is not None:
             valid &= self._textured_cells(gray)
-        if stream and self.scene is not None and not res.static_camera:
-            with np.errstate(invalid="ignore"):
-                static = valid & (res.likelihood < p.threshold)
-            self.scene.add(self._rays0, rays1, t0, t1, static)
-        return self._assemble(flow, cell_flow, res, valid, stream=stream)
+        likelihood = res.likelihood
+        keep_scene = stream and self.scene is not None
+        if (keep_scene or p.ground_contact) and not res.static_camera:
+            if p.ground_contact:  # every range counts here, however little parallax it has
+                ranges, _ = triangulate_range(self._rays0, rays1, t0, t1, far=p.prior_distance)
+                likelihood = self._explain_standing(res, valid, ranges, t0)
+            if keep_scene:
+                ranges, _ = triangulate_range(self._rays0, rays1, t0, t1, far=p.prior_distance,
+                                              min_parallax=TRIANGULATION_PARALLAX)
+                with np.errstate(invalid="ignore"):
+                    self.scene.add(self._rays0, ranges, t0, valid & (likelihood < p.threshold))
+        return self._assemble(flow, cell_flow, res, likelihood, valid, stream=stream)
+
+    def _explain_standing(self, res: ConstraintResult, valid, ranges, pose0) -> NDArray:
+        """The likelihood with the anti-parallel deviation removed from regions that stand on
+        the road (:mod:`fisheyemotion.ground_contact`)."""
+        p = self.params
+        weighted = p.weights[3] * np.nan_to_num(res.antiparallel) / sum(p.weights)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            moving = valid & (res.likelihood > p.threshold)
+            share = np.where(moving, weighted / res.likelihood, 0.0)
+        if not moving.any():
+            return res.likelihood
+        stands = standing_regions(moving, share, ranges, self._rays0, pose0, self.camera,
+                                  self.road, p.grid, ratio=p.contact_ratio)
+        if self.scene is not None and len(self.scene) and stands.any():
+            # A static point stays where it was: a cell whose range disagrees with what the
+            # scene model measured along its ray before has moved (e.g. a pedestrian stepping
+            # out beside a parked car, which stands on the road too).
+            before = self.scene.ranges(pose0, self._rays0, p.grid)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                moved = np.abs(ranges / before - 1) > SCENE_AGREEMENT
+            stands &= ~moved
+        return np.where(stands, res.likelihood - weighted, res.likelihood)
 
     def _carry(self, cells: NDArray, cell_flow: NDArray) -> NDArray:
         """A previous detection's cell map carried to the current one: consecutive detections
@@ -356,13 +389,17 @@ class MotionDetector:
         self._temporal = (acc, age)
         return np.where(np.isnan(cell_likelihood), np.nan, acc), age
 
-    def _assemble(self, flow, cell_flow, res: ConstraintResult, valid, *,
+    def _assemble(self, flow, cell_flow, res: ConstraintResult, likelihood, valid, *,
                   stream: bool = False) -> Detection:
         p, (w, h) = self.params, self.size
-        measured = np.where(valid, res.likelihood, np.nan)
+        measured = np.where(valid, likelihood, np.nan)
         # The measurement lives on the previous frame's cells; the result belongs to the current
-        # frame: every cell moves by its flow (the most likely one wins where several land).
-        source = grid_transfer(cell_flow, measured, p.grid)
+        # frame: every cell moves by its flow (the most likely one wins where several land),
+        # median-filtered over 3x3 cells so that a lone wrong flow does not throw its cell across
+        # the image.
+        carrier = np.stack([ndimage.median_filter(cell_flow[..., i], size=3, mode="nearest")
+                            for i in range(2)], axis=-1)
+        source = grid_transfer(carrier, measured, p.grid)
         valid_now = grid_gather(valid, source, False)
 
         def to_image(cells: NDArray[np.float64]) -> NDArray[np.float32]:
@@ -377,7 +414,7 @@ class MotionDetector:
         maps = LazyMaps({name: now(getattr(res, name)) for name in CONSTRAINT_NAMES}, to_image)
         age = None
         if stream and (p.temporal_decay > 0 or p.persistence > 1):
-            moved = np.nan_to_num(grid_gather(cell_flow, source), nan=0.0)
+            moved = np.nan_to_num(grid_gather(carrier, source), nan=0.0)
             cell_likelihood, age = self._temporal_filter(cell_likelihood, moved)
         likelihood = to_image(np.nan_to_num(cell_likelihood, nan=0.0))
         cell_mask, regions = segment_cells(cell_likelihood, threshold=p.threshold, grid=p.grid,

@@ -69,6 +69,13 @@ class Params:
         the points earlier detections judged static give the prior's range along each ray, so
         that buildings, walls, parked cars and poles get a small residual too, not only the
         road. The road plane and ``prior_distance`` remain the prior where nothing is known.
+    ground_contact : bool
+        Regions led by the anti-parallel term that stand on the road (the static range just
+        below their lower edge is about their own) are static structure: their anti-parallel
+        deviation is removed (:mod:`fisheyemotion.ground_contact`). An oncoming object seen as
+        static floats above the road and keeps it.
+    contact_ratio : float
+        Ground-contact ratio below which a region stands on the road.
     scene_memory : int
         Detections whose static points the scene model keeps.
     prior_distance : float
@@ -141,6 +148,8 @@ class Params:
     dis_preset: str = "medium"
     flow_prior: str = "warp"
     prior_distance: float = 1000.0
+    ground_contact: bool = True
+    contact_ratio: float = 1.05
     scene_prior: bool = True
     scene_memory: int = 3
     frame_gap: int = 3
@@ -165,7 +174,7 @@ class Params:
         object.__setattr__(self, "weights", tuple(float(v) for v in w))
         for name in ("lambda_h", "lambda_p", "lambda_p_ratio", "min_baseline", "epipole_margin",
                      "threshold", "saturation", "fb_tolerance", "fb_relative", "min_texture",
-                     "min_parallax", "seed_threshold"):
+                     "min_parallax", "seed_threshold", "contact_ratio"):
             v = getattr(self, name)
             if not _finite(v) or v < 0:
                 raise ValueError(f"{name}: expected a finite number >= 0, got {v!r}")
@@ -186,7 +195,8 @@ class Params:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
-        for name in ("depth_both_views", "fb_check", "visibility_check", "scene_prior"):
+        for name in ("depth_both_views", "fb_check", "visibility_check", "scene_prior",
+                     "ground_contact"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}: expected a bool, got {getattr(self, name)!r}")
         fb = dict(self.farneback) if isinstance(self.farneback, dict) else None
@@ -201,7 +211,8 @@ class Params:
         forward-backward or texture check (the defaults add some of these, as chosen by
         ``docs/evaluation.md``). The paper does not state its likelihood threshold; this uses
         0.005."""
-        return cls(**{"flow_prior": "none", "scene_prior": False, "fb_check": False,
+        return cls(**{"flow_prior": "none", "scene_prior": False, "ground_contact": False,
+                      "fb_check": False,
                       "frame_gap": 1, "min_texture": 0.0,
                       "visibility_check": False, "threshold": 0.005, "temporal_decay": 0.0,
                       **changes})

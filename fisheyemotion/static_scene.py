@@ -45,9 +45,12 @@ from scipy import ndimage
 
 from .calib.base import CameraModel
 
-__all__ = ["StaticScene", "triangulate_range"]
+__all__ = ["StaticScene", "TRIANGULATION_PARALLAX", "triangulate_range"]
 
 _DEGENERATE = 1e-9
+
+#: Radians: correspondences with less parallax are not triangulated by the detector.
+TRIANGULATION_PARALLAX = float(np.radians(0.5))
 
 
 def triangulate_range(rays0: NDArray[np.float64], rays1: NDArray[np.float64], pose0: NDArray,
@@ -96,15 +99,10 @@ class StaticScene:
     camera : CameraModel
     memory : int
         Detections whose points are kept (newest first).
-    far : float
-        Metres; triangulated ranges are clipped to this.
-    min_parallax : float
-        Radians; correspondences with less parallax are not triangulated.
     """
 
-    def __init__(self, camera: CameraModel, *, memory: int = 3, far: float = 1000.0,
-                 min_parallax: float = np.radians(0.5)) -> None:
-        self.camera, self.far, self.min_parallax = camera, float(far), float(min_parallax)
+    def __init__(self, camera: CameraModel, *, memory: int = 3) -> None:
+        self.camera = camera
         self._sets: deque[NDArray[np.float64]] = deque(maxlen=int(memory))
 
     def __len__(self) -> int:
@@ -114,14 +112,18 @@ class StaticScene:
     def clear(self) -> None:
         self._sets.clear()
 
-    def add(self, rays0: NDArray[np.float64], rays1: NDArray[np.float64], pose0: NDArray,
-            pose1: NDArray, static: NDArray[np.bool_]) -> int:
-        """Triangulate the correspondences marked ``static`` and keep their world points.
+    def add(self, rays: NDArray[np.float64], ranges: NDArray[np.float64], pose: NDArray,
+            static: NDArray[np.bool_]) -> int:
+        """Keep the world points of the correspondences marked ``static``.
 
         Parameters
         ----------
-        rays0, rays1 : ndarray, shape (..., 3)
-            Rays of the previous and current frame, in their camera frames.
+        rays : ndarray, shape (..., 3)
+            Rays of the previous frame, camera frame.
+        ranges : ndarray, shape (...)
+            Their triangulated ranges (:func:`triangulate_range`; NaN where not valid).
+        pose : ndarray, shape (4, 4)
+            ``world_from_cam`` of the previous frame.
         static : ndarray of bool, shape (...)
             Correspondences judged static (valid and below the detection threshold).
 
@@ -130,10 +132,8 @@ class StaticScene:
         int
             Points added.
         """
-        lam, ok = triangulate_range(rays0, rays1, pose0, pose1, far=self.far,
-                                    min_parallax=self.min_parallax)
-        ok &= static
-        points = pose0[:3, 3] + lam[ok][:, None] * (rays0[ok] @ pose0[:3, :3].T)
+        ok = static & np.isfinite(ranges)
+        points = pose[:3, 3] + ranges[ok][:, None] * (rays[ok] @ pose[:3, :3].T)
         self._sets.appendleft(points)
         return len(points)
 
