@@ -29,6 +29,7 @@ from .params import Params
 from .prior import EgoFlowPrior, lands_on, static_scene_targets
 from .road import Road
 from .segment import Region, segment_cells
+from .significance import cell_sigma, pixel_angle
 from .static_scene import TRIANGULATION_PARALLAX, StaticScene, triangulate_range
 
 CONSTRAINT_NAMES = ("epipolar", "depth", "height", "antiparallel")
@@ -171,6 +172,7 @@ class MotionDetector:
         self.scene = (StaticScene(camera, memory=self.params.scene_memory)
                       if self.params.scene_prior and self._prior is not None else None)
         self._pixel_coords = None
+        self._pixel_angle: NDArray[np.float64] | None = None
         self._view: NDArray[np.bool_] | None = None
         self._temporal: tuple[NDArray, NDArray] | None = None
         self._history: deque[tuple[NDArray[np.uint8], NDArray[np.float64]]] = deque(
@@ -331,11 +333,13 @@ class MotionDetector:
         if p.min_texture > 0 and gray is not None:
             valid &= self._textured_cells(gray)
         likelihood = res.likelihood
+        if p.significance > 0 and not res.static_camera:
+            likelihood = self._with_significance(res, flow, likelihood)
         keep_scene = stream and self.scene is not None
         if (keep_scene or p.ground_contact) and not res.static_camera:
             if p.ground_contact:  # every range counts here, however little parallax it has
                 ranges, _ = triangulate_range(self._rays0, rays1, t0, t1, far=p.prior_distance)
-                likelihood = self._explain_standing(res, valid, ranges, t0)
+                likelihood = self._explain_standing(res, likelihood, valid, ranges, t0)
             if keep_scene:
                 ranges, _ = triangulate_range(self._rays0, rays1, t0, t1, far=p.prior_distance,
                                               min_parallax=TRIANGULATION_PARALLAX)
@@ -343,16 +347,30 @@ class MotionDetector:
                     self.scene.add(self._rays0, ranges, t0, valid & (likelihood < p.threshold))
         return self._assemble(flow, cell_flow, res, likelihood, valid, stream=stream)
 
-    def _explain_standing(self, res: ConstraintResult, valid, ranges, pose0) -> NDArray:
+    def _with_significance(self, res: ConstraintResult, flow, likelihood) -> NDArray:
+        """The likelihood raised where the height or depth deviation is significant: at
+        ``params.significance`` flow-error sigmas a cell reaches the threshold
+        (:mod:`fisheyemotion.significance`)."""
+        p = self.params
+        if self._pixel_angle is None:
+            self._pixel_angle = pixel_angle(self.camera, self._centres)
+        sigma = cell_sigma(flow, p.grid, self._pixel_angle, floor=p.flow_sigma)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            z = np.fmax(res.height, res.depth) / sigma
+        return np.fmax(likelihood, np.where(np.isfinite(z), p.threshold * z / p.significance,
+                                            np.nan))
+
+    def _explain_standing(self, res: ConstraintResult, likelihood, valid, ranges,
+                          pose0) -> NDArray:
         """The likelihood with the anti-parallel deviation removed from regions that stand on
         the road (:mod:`fisheyemotion.ground_contact`)."""
         p = self.params
         weighted = p.weights[3] * np.nan_to_num(res.antiparallel) / sum(p.weights)
         with np.errstate(invalid="ignore", divide="ignore"):
-            moving = valid & (res.likelihood > p.threshold)
-            share = np.where(moving, weighted / res.likelihood, 0.0)
+            moving = valid & (likelihood > p.threshold)
+            share = np.where(moving, weighted / likelihood, 0.0)
         if not moving.any():
-            return res.likelihood
+            return likelihood
         stands = standing_regions(moving, share, ranges, self._rays0, pose0, self.camera,
                                   self.road, p.grid, ratio=p.contact_ratio)
         if self.scene is not None and len(self.scene) and stands.any():
@@ -363,7 +381,7 @@ class MotionDetector:
             with np.errstate(invalid="ignore", divide="ignore"):
                 moved = np.abs(ranges / before - 1) > SCENE_AGREEMENT
             stands &= ~moved
-        return np.where(stands, res.likelihood - weighted, res.likelihood)
+        return np.where(stands, likelihood - weighted, likelihood)
 
     def _carry(self, cells: NDArray, cell_flow: NDArray) -> NDArray:
         """A previous detection's cell map carried to the current one: consecutive detections

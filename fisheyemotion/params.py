@@ -69,6 +69,14 @@ class Params:
         the points earlier detections judged static give the prior's range along each ray, so
         that buildings, walls, parked cars and poles get a small residual too, not only the
         road. The road plane and ``prior_distance`` remain the prior where nothing is known.
+    significance : float
+        A cell whose positive-height or positive-depth deviation is this many flow-error sigmas
+        (:mod:`fisheyemotion.significance`) reaches the threshold: these two terms are quiet on
+        a static scene once the flow's error is accounted for, so a significant value is motion
+        even near the epipole, where raw angles are tiny (a preceding car). 0 keeps the paper's
+        raw angles only.
+    flow_sigma : float
+        Pixels: the flow's error on a well-measured cell (the floor of the error model).
     ground_contact : bool
         Regions led by the anti-parallel term that stand on the road (the static range just
         below their lower edge is about their own) are static structure: their anti-parallel
@@ -148,6 +156,8 @@ class Params:
     dis_preset: str = "medium"
     flow_prior: str = "warp"
     prior_distance: float = 1000.0
+    significance: float = 3.0
+    flow_sigma: float = 0.25
     ground_contact: bool = True
     contact_ratio: float = 1.05
     scene_prior: bool = True
@@ -174,7 +184,8 @@ class Params:
         object.__setattr__(self, "weights", tuple(float(v) for v in w))
         for name in ("lambda_h", "lambda_p", "lambda_p_ratio", "min_baseline", "epipole_margin",
                      "threshold", "saturation", "fb_tolerance", "fb_relative", "min_texture",
-                     "min_parallax", "seed_threshold", "contact_ratio"):
+                     "min_parallax", "seed_threshold", "contact_ratio",
+                     "significance", "flow_sigma"):
             v = getattr(self, name)
             if not _finite(v) or v < 0:
                 raise ValueError(f"{name}: expected a finite number >= 0, got {v!r}")
@@ -212,6 +223,7 @@ class Params:
         ``docs/evaluation.md``). The paper does not state its likelihood threshold; this uses
         0.005."""
         return cls(**{"flow_prior": "none", "scene_prior": False, "ground_contact": False,
+                      "significance": 0.0,
                       "fb_check": False,
                       "frame_gap": 1, "min_texture": 0.0,
                       "visibility_check": False, "threshold": 0.005, "temporal_decay": 0.0,
