@@ -20,6 +20,9 @@ from .evaluate import evaluate, sequence_paths
 from .report import table2_by_flow, write_report
 
 DEMO_CAMERA = "front_kb_640x480.yaml"
+#: The cluttered streets are rendered with both a Kannala-Brandt and a double-sphere camera, at
+#: their own length (48 frames).
+STREET_CAMERAS = {"kb": "front_kb_640x480.yaml", "ds": "front_ds_640x480.yaml"}
 
 
 def _params(args: argparse.Namespace) -> Params:
@@ -106,13 +109,21 @@ def cmd_demo(args: argparse.Namespace) -> int:
     out = Path(args.out)
     camera = calib.load(data / "calib" / DEMO_CAMERA)
     names = args.scenarios.split(",") if args.scenarios else synth.list_scenarios()
-    jobs = [(camera, data / "scenarios" / f"{name}.yaml", out / "sequences" / name, args.frames)
-            for name in names]
+    jobs = []
+    for name in names:
+        spec = data / "scenarios" / f"{name}.yaml"
+        if name.startswith("street"):
+            jobs += [(calib.load(data / "calib" / cam_file), spec,
+                      out / "sequences" / f"{name}_{suffix}", None)
+                     for suffix, cam_file in STREET_CAMERAS.items()]
+        else:
+            jobs.append((camera, spec, out / "sequences" / name, args.frames))
     with ProcessPoolExecutor(max_workers=args.workers or os.cpu_count() or 1) as pool:
         seqs = list(tqdm(pool.map(_render, jobs), total=len(jobs), desc="synth",
                          disable=args.quiet, leave=False))
-    print(f"Rendered {len(seqs)} scenarios x {args.frames} frames with {DEMO_CAMERA} into "
-          f"{out / 'sequences'}")
+    print(f"Rendered {len(seqs)} sequences into {out / 'sequences'}: open-road scenarios x "
+          f"{args.frames} frames with {DEMO_CAMERA}, cluttered streets at their own length with "
+          f"{', '.join(STREET_CAMERAS.values())}")
     results, report = run_eval(
         seqs, Params(), _flows(args.flow), out / "report", workers=args.workers, scheduler=None,
         progress=not args.quiet, title="fisheyemotion demo: bundled scenarios",
@@ -157,7 +168,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="render the bundled scenarios, detect, write a report")
     p.add_argument("--data", default=str(REPO_DATA), help="the data/ folder (default: bundled)")
     p.add_argument("--out", default="data/generated/demo", help="output folder")
-    p.add_argument("--frames", type=int, default=16, help="frames per scenario")
+    p.add_argument("--frames", type=int, default=16,
+                   help="frames per open-road scenario (the streets keep their own 48)")
     p.add_argument("--scenarios", help="comma-separated scenario names (default: all)")
     p.add_argument("--flow", default="farneback,dis", help="comma-separated: farneback,dis")
     p.add_argument("--workers", type=int)

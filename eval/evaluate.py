@@ -22,7 +22,7 @@ from fisheyemotion.synth import Renderer, load_scenario
 __all__ = ["ADDITIONS", "ABLATION_WEIGHTS", "SequenceResult", "additions_table", "combine",
            "evaluate", "evaluate_sequence", "sequence_paths"]
 
-from .metrics import frame_metrics, likelihood_histograms, object_metrics
+from .metrics import false_positive_surfaces, frame_metrics, likelihood_histograms, object_metrics
 
 #: The additions beyond the paper (docs/geometry.md), each alone on top of ``Params.paper()``;
 #: "all (defaults)" is ``Params()``.
@@ -37,6 +37,9 @@ ADDITIONS = {
     "+ temporal decay 0.3": {"temporal_decay": 0.3},
     "+ temporal persistence 2": {"persistence": 2},
     "+ threshold 0.004": {"threshold": 0.004},
+    "+ warp and scene prior": {"flow_prior": "warp", "scene_prior": True},
+    "+ significance 3 sigma": {"significance": 3.0},
+    "+ ground contact": {"ground_contact": True},
 }
 
 #: Ablation: weights (mu_e, mu_d, mu_h, mu_p) of each variant; "paper" is the configured Params.
@@ -90,6 +93,7 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
     n_moving = n_static = 0
     examples: dict = {}
     objects = seq.objects
+    kinds = dict(zip(objects.id.astype(int), objects.kind.astype(str), strict=True))
     gap = params.frame_gap
     renderer = _exact_flow_renderer(seq) if exact_flow else None
     grays = [to_gray(seq.frame(i), "frame") for i in range(min(gap, len(seq)))]
@@ -122,6 +126,8 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
         fp_pix = (det.mask > 0) & (gt == 0) & valid
         fm.update({"sequence": seq.name, "frame": k, "ego_static": det.static_camera})
         fm.update({f"fp_{n}": float(weighted[n][fp_pix].sum()) for n in CONSTRAINT_NAMES})
+        surfaces = false_positive_surfaces(det.mask, gt, valid, ids, kinds)
+        fm.update({f"fp_on_{name}": v for name, v in surfaces.items()})
         frame_rows.append(fm)
         m_above, s_above = likelihood_histograms(det.likelihood, gt, valid)
         moving_above = m_above if moving_above is None else moving_above + m_above

@@ -84,6 +84,23 @@ def frame_metrics(pred: NDArray, moving_gt: NDArray, valid: NDArray) -> dict:
     }
 
 
+#: Surfaces false-positive pixels are broken down by (``objects.csv`` kinds; id 0 is the road and
+#: the ground beside it, anything else static is ``other``).
+SURFACES = ("road", "building", "wall", "parked_car", "pole", "other")
+
+
+def false_positive_surfaces(pred: NDArray, moving_gt: NDArray, valid: NDArray, ids: NDArray,
+                            kinds: dict[int, str]) -> dict[str, int]:
+    """False-positive pixels of one frame per surface they lie on (:data:`SURFACES`)."""
+    fp = (pred > 0) & valid & ~(moving_gt > 0)
+    counts = np.bincount(ids[fp].ravel().astype(np.int64))
+    out = dict.fromkeys(SURFACES, 0)
+    for i in np.flatnonzero(counts):
+        kind = "road" if i == 0 else kinds.get(int(i), "other")
+        out[kind if kind in out else "other"] += int(counts[i])
+    return out
+
+
 def table2(objects: pd.DataFrame, frames: pd.DataFrame) -> pd.DataFrame:
     """Table 2 of the paper from the tidy per-object and per-frame tables.
 
