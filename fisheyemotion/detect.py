@@ -36,6 +36,8 @@ CONSTRAINT_NAMES = ("epipolar", "depth", "height", "antiparallel")
 
 #: Relative range difference within which a cell agrees with the static-scene model.
 SCENE_AGREEMENT = 0.05
+#: ... or within this many of the cell's range errors (from its flow's error), if larger.
+AGREEMENT_SIGMAS = 2.0
 
 
 class Grid(NamedTuple):
@@ -333,13 +335,23 @@ class MotionDetector:
         if p.min_texture > 0 and gray is not None:
             valid &= self._textured_cells(gray)
         likelihood = res.likelihood
+        sigma = None
+        if (p.significance > 0 or p.ground_contact) and not res.static_camera:
+            if self._pixel_angle is None:
+                self._pixel_angle = pixel_angle(self.camera, self._centres)
+            sigma = cell_sigma(flow, p.grid, self._pixel_angle, floor=p.flow_sigma)
         if p.significance > 0 and not res.static_camera:
-            likelihood = self._with_significance(res, flow, likelihood)
+            likelihood = self._with_significance(res, sigma, likelihood)
         keep_scene = stream and self.scene is not None
         if (keep_scene or p.ground_contact) and not res.static_camera:
             if p.ground_contact:  # every range counts here, however little parallax it has
                 ranges, _ = triangulate_range(self._rays0, rays1, t0, t1, far=p.prior_distance)
-                likelihood = self._explain_standing(res, likelihood, valid, ranges, t0)
+                parallax = np.linalg.norm(np.cross(self._rays0 @ t0[:3, :3].T,
+                                                   rays1 @ t1[:3, :3].T), axis=-1)
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    range_error = sigma / parallax  # relative: d(lambda)/lambda
+                likelihood = self._explain_standing(res, likelihood, valid, ranges, range_error,
+                                                    t0)
             if keep_scene:
                 ranges, _ = triangulate_range(self._rays0, rays1, t0, t1, far=p.prior_distance,
                                               min_parallax=TRIANGULATION_PARALLAX)
@@ -347,23 +359,21 @@ class MotionDetector:
                     self.scene.add(self._rays0, ranges, t0, valid & (likelihood < p.threshold))
         return self._assemble(flow, cell_flow, res, likelihood, valid, stream=stream)
 
-    def _with_significance(self, res: ConstraintResult, flow, likelihood) -> NDArray:
+    def _with_significance(self, res: ConstraintResult, sigma, likelihood) -> NDArray:
         """The likelihood raised where the height or depth deviation is significant: at
         ``params.significance`` flow-error sigmas a cell reaches the threshold
-        (:mod:`fisheyemotion.significance`)."""
+        (:mod:`fisheyemotion.significance`; ``sigma``: the cells' angular flow error)."""
         p = self.params
-        if self._pixel_angle is None:
-            self._pixel_angle = pixel_angle(self.camera, self._centres)
-        sigma = cell_sigma(flow, p.grid, self._pixel_angle, floor=p.flow_sigma)
         with np.errstate(invalid="ignore", divide="ignore"):
             z = np.fmax(res.height, res.depth) / sigma
         return np.fmax(likelihood, np.where(np.isfinite(z), p.threshold * z / p.significance,
                                             np.nan))
 
-    def _explain_standing(self, res: ConstraintResult, likelihood, valid, ranges,
+    def _explain_standing(self, res: ConstraintResult, likelihood, valid, ranges, range_error,
                           pose0) -> NDArray:
         """The likelihood with the anti-parallel deviation removed from regions that stand on
-        the road (:mod:`fisheyemotion.ground_contact`)."""
+        the road (:mod:`fisheyemotion.ground_contact`) and agree with the scene model
+        (``range_error``: each cell's relative range error from its flow's)."""
         p = self.params
         weighted = p.weights[3] * np.nan_to_num(res.antiparallel) / sum(p.weights)
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -375,11 +385,13 @@ class MotionDetector:
                                   self.road, p.grid, ratio=p.contact_ratio)
         if self.scene is not None and len(self.scene) and stands.any():
             # A static point stays where it was: a cell whose range disagrees with what the
-            # scene model measured along its ray before has moved (e.g. a pedestrian stepping
-            # out beside a parked car, which stands on the road too).
+            # scene model measured along its ray before, by more than the flow's error explains,
+            # has moved (e.g. a pedestrian stepping out beside a parked car, which stands on the
+            # road too).
             before = self.scene.ranges(pose0, self._rays0, p.grid)
             with np.errstate(invalid="ignore", divide="ignore"):
-                moved = np.abs(ranges / before - 1) > SCENE_AGREEMENT
+                tolerance = np.fmax(SCENE_AGREEMENT, AGREEMENT_SIGMAS * range_error)
+                moved = np.abs(ranges / before - 1) > tolerance
             stands &= ~moved
         return np.where(stands, likelihood - weighted, likelihood)
 
