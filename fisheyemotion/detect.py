@@ -424,9 +424,9 @@ class MotionDetector:
         p, (w, h) = self.params, self.size
         measured = np.where(valid, likelihood, np.nan)
         # The measurement lives on the previous frame's cells; the result belongs to the current
-        # frame: every cell moves by its flow (the most likely one wins where several land),
-        # median-filtered over 3x3 cells so that a lone wrong flow does not throw its cell across
-        # the image.
+        # frame: every cell moves by the mean flow it was scored with (the most likely one wins
+        # where several land), median-filtered over 3x3 cells so that a lone wrong flow does not
+        # throw its cell across the image.
         carrier = np.stack([ndimage.median_filter(cell_flow[..., i], size=3, mode="nearest")
                             for i in range(2)], axis=-1)
         source = grid_transfer(carrier, measured, p.grid)

@@ -84,13 +84,16 @@ def grid_upsample(cells: NDArray, grid: int, width: int, height: int) -> NDArray
     return np.pad(full, pad, mode="edge") if any(p[1] for p in pad) else full
 
 
-def grid_transfer(cell_flow: NDArray, order: NDArray, grid: int) -> NDArray[np.intp]:
+def grid_transfer(cell_flow: NDArray, order: NDArray, grid: int, *,
+                  reach: int = 3) -> NDArray[np.intp]:
     """Which cell of the first frame lands on each cell of the second, by the cells' flow.
 
     Every cell ``(r, c)`` of the first frame is moved by its flow ``cell_flow[r, c]``; the cell
     of the second frame its centre lands in takes it. Where several land on one cell, the one
-    with the largest ``order`` wins; a cell on which none lands takes, from its 8 neighbours,
-    the source with the largest ``order`` (gaps where a region expands), else none.
+    with the largest ``order`` wins. A cell on which none lands between two cells that have
+    sources, within ``reach`` cells on a line through it (a gap where a region expands), takes
+    the one with the smallest ``order``; other cells on which none lands (background uncovered
+    behind a moving region) have no source.
 
     Parameters
     ----------
@@ -113,6 +116,7 @@ def grid_transfer(cell_flow: NDArray, order: NDArray, grid: int) -> NDArray[np.i
         r = np.floor(target[..., 1] / grid)
         ok = (c >= 0) & (c < cols) & (r >= 0) & (r < rows)
     rank = np.nan_to_num(order, nan=-np.inf).ravel()
+    fill_rank = np.nan_to_num(order, nan=np.inf).ravel()  # gaps prefer a valid source
     src = np.flatnonzero(ok.ravel())
     src = src[np.argsort(rank[src], kind="stable")]  # the largest last: it wins the assignment
     dest = (r.ravel()[src] * cols + c.ravel()[src]).astype(np.intp)
@@ -121,13 +125,26 @@ def grid_transfer(cell_flow: NDArray, order: NDArray, grid: int) -> NDArray[np.i
     out = out.reshape(rows, cols)
     empty = out < 0
     if empty.any():
-        padded = np.pad(out, 1, constant_values=-1)
-        best, best_rank = np.full_like(out, -1), np.full(out.shape, -np.inf)
-        for dr in (0, 1, 2):
-            for dc in (0, 1, 2):
-                cand = padded[dr:dr + rows, dc:dc + cols]
-                cand_rank = np.where(cand >= 0, rank[cand], -np.inf)
-                better = (cand >= 0) & (cand_rank >= best_rank) & ((cand_rank > best_rank) | (best < 0))
+        k = reach
+        padded = np.pad(out, k, constant_values=-1)
+
+        def nearest(dr: int, dc: int) -> NDArray[np.intp]:
+            """The first landed cell within ``reach`` steps in direction (dr, dc)."""
+            found = np.full_like(out, -1)
+            for d in range(1, k + 1):
+                cand = padded[k + d * dr:k + d * dr + rows, k + d * dc:k + d * dc + cols]
+                found = np.where(found < 0, cand, found)
+            return found
+
+        best, best_rank = np.full_like(out, -1), np.full(out.shape, np.inf)
+        # Only gaps between landed cells on both sides of a line through them (a region that
+        # expands); a gap with landed cells on one side only is uncovered background.
+        for a, b in (((0, -1), (0, 1)), ((-1, 0), (1, 0)), ((-1, -1), (1, 1)), ((-1, 1), (1, -1))):
+            pa, pb = nearest(*a), nearest(*b)
+            enclosed = (pa >= 0) & (pb >= 0)
+            for cand in (pa, pb):
+                cand_rank = np.where(enclosed, fill_rank[cand], np.inf)
+                better = enclosed & ((cand_rank < best_rank) | (best < 0))
                 best = np.where(better, cand, best)
                 best_rank = np.where(better, cand_rank, best_rank)
         out = np.where(empty, best, out)

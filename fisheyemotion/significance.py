@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .calib.base import CameraModel
-from .flow import grid_average
+from .flow import grid_average, grid_upsample
 
 __all__ = ["cell_sigma", "pixel_angle"]
 
@@ -67,7 +67,9 @@ def cell_sigma(flow: NDArray[np.float32], grid: int, angle: NDArray[np.float64],
     ndarray, shape (rows, cols)
         Radians.
     """
-    f = flow.astype(np.float64)  # float32 would cancel E[f^2] - E[f]^2 at 100-px flows
-    mean = grid_average(f, grid)
-    var = (grid_average(f * f, grid) - mean * mean).sum(axis=-1)
-    return np.sqrt(floor * floor + np.maximum(var, 0.0)) * angle
+    mean = grid_average(flow, grid)
+    h, w = flow.shape[:2]
+    # Deviations from the cell mean (E[f^2] - E[f]^2 would cancel at 100-px flows).
+    dev = flow - grid_upsample(mean, grid, w, h)
+    var = grid_average(dev * dev, grid).sum(axis=-1)
+    return np.sqrt(floor * floor + var) * angle

@@ -1,0 +1,205 @@
+"""The cluttered-street capabilities: the static-scene model, results on the current frame,
+the ground-contact test and deviations in units of the flow's error."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import fisheyemotion as fm
+from fisheyemotion import synth
+from fisheyemotion.flow import grid_gather, grid_transfer
+from fisheyemotion.ground_contact import contact_ratios, standing_regions
+from fisheyemotion.prior import EgoFlowPrior
+from fisheyemotion.significance import cell_sigma, pixel_angle
+from fisheyemotion.static_scene import StaticScene, triangulate_range
+
+from .cameras import TUMVI_KB
+from .scenes import camera_pose, moved, rays_of
+
+CAM = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 100.0, "fy": 100.0, "cx": 159.5, "cy": 119.5,
+                                "width": 320, "height": 240})
+WALL = synth.parse_scenario({
+    "name": "wall", "frames": 4, "ego": {"speed_kmh": 25},
+    "camera": {"position": [2, 0, 0.9], "pitch_deg": 10},
+    "static": [{"id": 20, "kind": "wall", "center": [9, -4.0], "size": [14, 0.3, 3.0]},
+               {"id": 21, "kind": "parked_car", "center": [8, 3.0]}]})
+
+
+# ---- triangulation and the static-scene model ----------------------------------------------
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_triangulated_range_is_the_distance_to_the_point(seed):
+    rng = np.random.default_rng(seed)
+    pose0 = camera_pose(rng, height=1.0)
+    pose1 = moved(pose0, [rng.uniform(0.3, 2.0), rng.uniform(-0.3, 0.3), 0.0],
+                  yaw_deg=rng.uniform(-5, 5))
+    points = pose0[:3, 3] + rng.uniform([3, -8, -0.9], [30, 8, 5], size=(50, 3))
+    lam, ok = triangulate_range(rays_of(points, pose0), rays_of(points, pose1), pose0, pose1,
+                                far=1e4, min_parallax=np.radians(0.05))
+    truth = np.linalg.norm(points - pose0[:3, 3], axis=-1)
+    assert ok.mean() > 0.9
+    np.testing.assert_allclose(lam[ok], truth[ok], rtol=1e-8)
+
+
+def test_triangulation_rejects_points_behind_and_without_parallax():
+    pose0 = camera_pose(np.random.default_rng(0), height=1.0)
+    pose1 = moved(pose0, [1.0, 0, 0])
+    ahead = pose0[:3, 3] + np.array([[10.0, 3.0, 0.0]])
+    r0 = rays_of(ahead, pose0)
+    # The same ray in both views (no parallax) and a ray pair that meets behind the camera.
+    lam, ok = triangulate_range(r0, rays_of(ahead, pose0), pose0, pose1, far=100,
+                                min_parallax=np.radians(0.5))
+    assert not ok[0] and np.isnan(lam[0])
+    # The second ray meets the first one's line 5 m behind the first camera.
+    behind = pose0[:3, 3] - 5.0 * (r0 @ pose0[:3, :3].T)
+    lam, ok = triangulate_range(r0, rays_of(behind, pose1), pose0, pose1, far=100)
+    assert not ok[0]
+    lam, ok = triangulate_range(r0, rays_of(ahead, pose1), pose0, pose1, far=100)
+    assert ok[0] and lam[0] == pytest.approx(np.hypot(10.0, 3.0))
+
+
+def test_scene_ranges_return_the_stored_points_along_other_rays():
+    rng = np.random.default_rng(1)
+    pose0 = camera_pose(rng, height=1.0)
+    pose1 = moved(pose0, [1.0, 0.0, 0.0])
+    prior = EgoFlowPrior(CAM, step=8)
+    # A wall 6 m to the left seen on a dense grid of the first camera.
+    u = np.stack(np.meshgrid(np.arange(0, 320, 2.0), np.arange(0, 240, 2.0)), axis=-1)
+    rays, ok = CAM.unproject(u)
+    dirs = rays @ pose0[:3, :3].T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lam = np.where(dirs[..., 1] > 0.05, 6.0 / dirs[..., 1], np.nan)
+    scene = StaticScene(CAM)
+    assert scene.add(rays, lam, pose0, ok & np.isfinite(lam)) > 1000
+    # Seen from the second camera: ranges along its rays are the distances to the wall.
+    got = scene.ranges(pose1, prior._rays, prior.step)
+    d1 = prior._rays @ pose1[:3, :3].T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        truth = (6.0 - pose1[1, 3] + pose0[1, 3]) / d1[..., 1]
+    inner = np.isfinite(got) & (d1[..., 1] > 0.3)
+    assert inner.sum() > 50
+    np.testing.assert_allclose(got[inner], truth[inner], rtol=0.05)
+    scene.clear()
+    assert len(scene) == 0 and np.isnan(scene.ranges(pose1, prior._rays, 8)).all()
+
+
+def test_scene_prior_predicts_the_flow_of_structure_beside_the_road():
+    r = synth.Renderer(CAM, WALL, supersample=1)
+    f = [r.render(k) for k in range(4)]
+    det = fm.MotionDetector(CAM, roi=r.roi(), params=fm.Params(frame_gap=1))
+    prior = EgoFlowPrior(CAM, step=4)
+    structure = (f[2].ids >= 20) & (f[2].ids < 65535) & np.isfinite(f[3].flow).all(axis=-1)
+    road_only, _ = prior(f[2].pose, f[3].pose, fm.Road())
+    # The stream measures the scene with the exact flow, then predicts the next pair.
+    for k in (1, 2):
+        det.detect_flow(np.nan_to_num(f[k].flow), f[k - 1].pose, f[k].pose, stream=True)
+    with_scene, _ = prior(f[2].pose, f[3].pose, fm.Road(), scene=det.scene)
+    err_road_only = np.linalg.norm(road_only - f[3].flow, axis=-1)[structure]
+    err_scene = np.linalg.norm(with_scene - f[3].flow, axis=-1)[structure]
+    assert np.median(err_road_only) > 2.0
+    assert np.median(err_scene) < 0.25 * np.median(err_road_only)
+
+
+def test_prior_flow_is_continued_where_the_static_point_leaves_the_domain():
+    # A double sphere whose domain ends inside the image: the road below the camera leaves it.
+    ds = fm.calib.DoubleSphere(fx=80, fy=80, cx=159.5, cy=119.5, xi=-0.2, alpha=0.6,
+                               width=320, height=240)
+    pose0 = camera_pose(np.random.default_rng(0), height=0.9, pitch_deg=15)
+    pose1 = moved(pose0, [1.5, 0, 0])
+    flow, _ = EgoFlowPrior(ds, step=8)(pose0, pose1, fm.Road())
+    valid = ds.valid_pixel_mask()
+    bottom = valid.copy()
+    bottom[:200] = False
+    assert bottom.any()
+    assert np.all(np.linalg.norm(flow[bottom], axis=-1) > 1.0)
+
+
+# ---- results on the current frame ----------------------------------------------------------
+
+def test_grid_transfer_moves_cells_by_their_flow_and_fills_gaps():
+    rows, cols, g = 20, 30, 5
+    values = np.zeros((rows, cols))
+    values[5:8, 10:13] = 1.0
+    flow = np.zeros((rows, cols, 2), np.float32)
+    flow[5:8, 10:13] = (11.0, 5.0)  # two cells right, one down
+    src = grid_transfer(flow, values, g)
+    out = grid_gather(values, src)
+    assert np.array_equal(np.argwhere(out > 0.5).min(axis=0), [6, 12])
+    assert np.array_equal(np.argwhere(out > 0.5).max(axis=0), [8, 14])
+    # Expansion: cells spread apart leave gaps that take a neighbour.
+    spread = np.zeros((rows, cols, 2), np.float32)
+    spread[..., 0] = (np.arange(cols) - cols / 2) * 2.0
+    src = grid_transfer(spread, np.ones((rows, cols)), g)
+    assert (src[:, 3:-3] >= 0).all()
+    assert (grid_gather(np.ones((rows, cols)), src)[:, 3:-3] == 1).all()
+
+
+def test_masks_are_on_the_current_frame():
+    scenario = synth.parse_scenario({
+        "name": "fast crosser", "frames": 2, "ego": {"speed_kmh": 5},
+        "camera": {"position": [2, 0, 1.0], "pitch_deg": 15},
+        "objects": [{"id": 1, "kind": "car", "category": "crossing", "start": [8, -3],
+                     "heading_deg": 90, "speed_kmh": 40}]})
+    cam = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 200.0, "fy": 200.0, "cx": 319.5,
+                                    "cy": 239.5, "width": 640, "height": 480})
+    f0, f1 = synth.render_frames(cam, scenario)
+    det = fm.MotionDetector(cam).detect_flow(np.nan_to_num(f1.flow), f0.pose, f1.pose)
+    now, before = f1.moving > 0, f0.moving > 0
+    ahead, behind = (det.mask[now & ~before] > 0).mean(), (det.mask[before & ~now] > 0).mean()
+    # Where the car is now, and much less where it was (cells straddling its trailing edge
+    # carry it a cell or two behind).
+    assert ahead > 0.8 and behind < 0.6 and behind < ahead - 0.3
+
+
+# ---- ground contact ----------------------------------------------------------------------
+
+def _column_scene(below_ratio: float):
+    """One region 3 cells tall over 3 columns at range 10 m, with ``below_ratio`` x 10 m below."""
+    pose = camera_pose(np.random.default_rng(0), height=1.0, pitch_deg=0)
+    rows, cols, g = 48, 64, 5
+    centres = np.stack(np.meshgrid(np.arange(cols) * g + 2.0, np.arange(rows) * g + 2.0),
+                       axis=-1)
+    rays, _ = CAM.unproject(centres)
+    ranges = np.full((rows, cols), 10.0)
+    labels = np.zeros((rows, cols), np.intp)
+    labels[20:23, 30:33] = 1
+    ranges[23:30, 30:33] = 10.0 * below_ratio
+    return labels, ranges, rays, pose, g
+
+
+@pytest.mark.parametrize("below, stands", [(0.8, True), (1.0, True), (1.5, False)])
+def test_ground_contact_tells_standing_from_floating(below, stands):
+    labels, ranges, rays, pose, g = _column_scene(below)
+    ratios = contact_ratios(labels, ranges, rays, pose, CAM, fm.Road(), g)
+    assert np.allclose(ratios[1, 30:33], below)
+    share = np.where(labels > 0, 0.9, 0.0)
+    got = standing_regions(labels > 0, share, ranges, rays, pose, CAM, fm.Road(), g, ratio=1.05)
+    assert got[labels > 0].all() == stands and not got[labels == 0].any()
+
+
+def test_regions_not_led_by_the_antiparallel_term_are_never_explained():
+    labels, ranges, rays, pose, g = _column_scene(0.8)
+    share = np.where(labels > 0, 0.3, 0.0)
+    assert not standing_regions(labels > 0, share, ranges, rays, pose, CAM, fm.Road(), g,
+                                ratio=1.05).any()
+
+
+# ---- significance ------------------------------------------------------------------------
+
+def test_pixel_angle_is_one_over_the_focal_length_at_the_centre():
+    a = pixel_angle(CAM, np.array([[159.5, 119.5]]))
+    assert a[0] == pytest.approx(1 / 100.0, rel=1e-3)
+
+
+def test_cell_sigma_grows_with_discordant_flow():
+    flow = np.zeros((20, 20, 2), np.float32)
+    flow[:10] = 100.0  # large but uniform: no extra error
+    flow[10:, :, 0] = np.tile([0.0, 4.0], (10, 10))  # discordant pixels
+    angle = np.full((4, 4), 0.01)
+    s = cell_sigma(flow, 5, angle, floor=0.25)
+    np.testing.assert_allclose(s[:2], 0.25 * 0.01, rtol=1e-6)
+    assert (s[2:] > 5 * 0.25 * 0.01).all()
