@@ -17,7 +17,6 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
 
 from .calib.base import CameraModel, pixel_grid
 from .calib.transforms import check_rigid
@@ -388,12 +387,22 @@ class MotionDetector:
             # scene model measured along its ray before, by more than the flow's error explains,
             # has moved (e.g. a pedestrian stepping out beside a parked car, which stands on the
             # road too).
-            before = self.scene.ranges(pose0, self._rays0, p.grid)
+            before = self._scene_ranges_at_cells(pose0)
             with np.errstate(invalid="ignore", divide="ignore"):
                 tolerance = np.fmax(SCENE_AGREEMENT, AGREEMENT_SIGMAS * range_error)
                 moved = np.abs(ranges / before - 1) > tolerance
             stands &= ~moved
         return np.where(stands, likelihood - weighted, likelihood)
+
+    def _scene_ranges_at_cells(self, pose0: NDArray) -> NDArray[np.float64]:
+        """The scene model's ranges at the cell centres, read off the prior's coarser samples
+        (computed once per frame pair: the prior asked for the same)."""
+        step = self._prior.step
+        w, h = self.size
+        coarse = self.scene.ranges(pose0, step, (-(-h // step), -(-w // step)))
+        c = (self._centres[..., 0] // step).astype(np.intp)
+        r = (self._centres[..., 1] // step).astype(np.intp)
+        return coarse[r, c]
 
     def _carry(self, cells: NDArray, cell_flow: NDArray) -> NDArray:
         """A previous detection's cell map carried to the current one: consecutive detections
@@ -427,8 +436,7 @@ class MotionDetector:
         # frame: every cell moves by the mean flow it was scored with (the most likely one wins
         # where several land), median-filtered over 3x3 cells so that a lone wrong flow does not
         # throw its cell across the image.
-        carrier = np.stack([ndimage.median_filter(cell_flow[..., i], size=3, mode="nearest")
-                            for i in range(2)], axis=-1)
+        carrier = cv2.medianBlur(np.ascontiguousarray(cell_flow, dtype=np.float32), 3)
         source = grid_transfer(carrier, measured, p.grid)
         valid_now = grid_gather(valid, source, False)
 

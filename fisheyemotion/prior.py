@@ -118,7 +118,7 @@ class EgoFlowPrior:
         seen : ndarray of bool, shape (H, W)
             The predicted point lands on ``view`` (at the prediction grid's resolution).
         """
-        ranges = None if scene is None else scene.ranges(pose0, self._rays, self.step)
+        ranges = None if scene is None else scene.ranges(pose0, self.step, self._rays.shape[:2])
         pixels, ok = static_scene_targets(self.camera, self._rays, pose0, pose1, road,
                                           self.distance, ranges)
         ok &= self._valid

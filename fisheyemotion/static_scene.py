@@ -103,6 +103,8 @@ class StaticScene:
 
     def __init__(self, camera: CameraModel, *, memory: int = 3) -> None:
         self.camera = camera
+        self._version = 0
+        self._cached: tuple | None = None
         self._sets: deque[NDArray[np.float64]] = deque(maxlen=int(memory))
 
     def __len__(self) -> int:
@@ -111,6 +113,7 @@ class StaticScene:
 
     def clear(self) -> None:
         self._sets.clear()
+        self._version += 1
 
     def add(self, rays: NDArray[np.float64], ranges: NDArray[np.float64], pose: NDArray,
             static: NDArray[np.bool_]) -> int:
@@ -135,25 +138,35 @@ class StaticScene:
         ok = static & np.isfinite(ranges)
         points = pose[:3, 3] + ranges[ok][:, None] * (rays[ok] @ pose[:3, :3].T)
         self._sets.appendleft(points)
+        self._version += 1
         return len(points)
 
-    def ranges(self, pose: NDArray, rays: NDArray[np.float64], step: int) -> NDArray[np.float64]:
-        """Range of the nearest stored point along each of a coarse grid of ``rays``.
+    def ranges(self, pose: NDArray, step: int, shape: tuple[int, int]) -> NDArray[np.float64]:
+        """Median range of the stored points seen in each ``step x step`` cell of a camera.
 
         Parameters
         ----------
         pose : ndarray, shape (4, 4)
-            ``world_from_cam`` of the camera the rays belong to.
-        rays : ndarray, shape (rows, cols, 3)
-            Rays of the samples at pixels ``step * j + (step - 1) / 2``.
+            ``world_from_cam`` of the camera.
         step : int
+            Cell size, pixels: cell ``(r, c)`` holds pixels ``[step r, step (r + 1))`` down and
+            ``[step c, step (c + 1))`` across.
+        shape : (rows, cols)
 
         Returns
         -------
         ndarray, shape (rows, cols)
-            Metres; NaN where no stored point falls in or next to the sample's cell.
+            Metres; NaN where no stored point falls in or next to the cell. The last result is
+            kept: asking again for the same pose and cells before the next :meth:`add` is free.
         """
-        rows, cols = rays.shape[:2]
+        key = (pose.tobytes(), step, tuple(shape), self._version)
+        if self._cached is not None and self._cached[0] == key:
+            return self._cached[1]
+        out = self._ranges(pose, step, *shape)
+        self._cached = (key, out)
+        return out
+
+    def _ranges(self, pose: NDArray, step: int, rows: int, cols: int) -> NDArray[np.float64]:
         out = np.full(rows * cols, np.inf)
         if len(self):
             points = np.concatenate(list(self._sets))
@@ -165,8 +178,9 @@ class StaticScene:
             inside = (c >= 0) & (c < cols) & (r >= 0) & (r < rows)
             cell, rng = r[inside] * cols + c[inside], rng[inside]
             if len(cell):
-                # Median range per sample: sort by (sample, range), take each run's middle.
-                order = np.lexsort((rng, cell))
+                # Median range per sample: sort by (sample, range) -- one float key, the range
+                # as the fraction -- and take each run's middle.
+                order = np.argsort(cell + rng / (2.0 * rng.max()), kind="stable")
                 cell, rng = cell[order], rng[order]
                 starts = np.flatnonzero(np.r_[True, cell[1:] != cell[:-1]])
                 counts = np.diff(np.r_[starts, len(cell)])

@@ -76,7 +76,7 @@ def test_scene_ranges_return_the_stored_points_along_other_rays():
     scene = StaticScene(CAM)
     assert scene.add(rays, lam, pose0, ok & np.isfinite(lam)) > 1000
     # Seen from the second camera: ranges along its rays are the distances to the wall.
-    got = scene.ranges(pose1, prior._rays, prior.step)
+    got = scene.ranges(pose1, prior.step, prior._rays.shape[:2])
     d1 = prior._rays @ pose1[:3, :3].T
     with np.errstate(divide="ignore", invalid="ignore"):
         truth = (6.0 - pose1[1, 3] + pose0[1, 3]) / d1[..., 1]
@@ -84,7 +84,7 @@ def test_scene_ranges_return_the_stored_points_along_other_rays():
     assert inner.sum() > 50
     np.testing.assert_allclose(got[inner], truth[inner], rtol=0.05)
     scene.clear()
-    assert len(scene) == 0 and np.isnan(scene.ranges(pose1, prior._rays, 8)).all()
+    assert len(scene) == 0 and np.isnan(scene.ranges(pose1, 8, (30, 40))).all()
 
 
 def test_scene_prior_predicts_the_flow_of_structure_beside_the_road():
