@@ -7,7 +7,7 @@
 
 from .base import CameraModel, pixel_grid
 from .errors import CalibrationError
-from .models import DoubleSphere, EnhancedUnified, KannalaBrandt, Pinhole, RadialPoly, Unified
+from .models import DoubleSphere, EnhancedUnified, Fisheye624, KannalaBrandt, Pinhole, RadialPoly, Unified
 from .readers import FORMATS, Rig, load, load_rig, parse, save_kalibr, save_opencv
 from .registry import MODELS, create, model_class, register
 
@@ -23,7 +23,7 @@ __all__ = [
     "CalibrationError",
     "CameraModel",
     "DoubleSphere",
-    "EnhancedUnified",
+    "EnhancedUnified", "Fisheye624",
     "KannalaBrandt",
     "Pinhole",
     "RadialPoly",

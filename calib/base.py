@@ -64,6 +64,9 @@ class CameraModel:
     """
 
     name: ClassVar[str] = ""
+    #: False for models with terms that are not radial (tangential, thin prism): their pixel
+    #: domain is not a disk of ``radius_max``, only their radial part's is.
+    radially_symmetric: ClassVar[bool] = True
     #: Intrinsic parameter names in canonical order (what ``params`` returns).
     param_names: ClassVar[tuple[str, ...]] = ()
 

@@ -38,6 +38,16 @@ MODEL_SAMPLES: dict[str, list[calib.CameraModel]] = {
         calib.Unified(fx=400, fy=400, cx=320, cy=240, xi=0.8, width=640, height=480),
         calib.Unified(fx=300, fy=300, cx=320, cy=240, xi=1.5, width=640, height=480),
     ],
+    "fisheye624": [  # Project Aria Gen2 side SLAM camera (factory calibration), without and with
+        # its valid radius
+        calib.Fisheye624(f=244.78391135310176, cx=252.66232836491685, cy=256.6758625428585,
+                         k0=0.033700017499895374, k1=-0.0356144764687204, k2=0.05016276920856296,
+                         k3=-0.06365513840303465, k4=0.024101530347748173,
+                         k5=-0.0028219261779819558, p0=-0.001007436351907263,
+                         p1=-0.0013828990859600307, s0=0.0018403425685775804,
+                         s1=8.515338893522913e-05, s2=0.0009721496384546848,
+                         s3=0.0002693679794197647, width=512, height=512),
+    ],
     "radial_poly": [
         calib.RadialPoly(k1=339.749, k2=-31.988, k3=48.275, k4=-7.201, cx_offset=3.942,
                          cy_offset=-3.093, aspect_ratio=1.0, width=1280, height=966),

@@ -11,6 +11,8 @@ format             detected by
 ``ros``            YAML with ``camera_matrix`` (sensor_msgs/CameraInfo)
 ``basalt``         JSON with ``value0.intrinsics``
 ``woodscape``      JSON with ``intrinsic``
+``aria``           JSON with ``CameraCalibrations`` (Project Aria factory calibration), or
+                   Aria camera summaries (``{label: {projection_params, ...}}``)
 ``colmap``         text lines ``CAMERA_ID MODEL WIDTH HEIGHT PARAMS...`` (``cameras.txt``)
 =================  ======================================================================
 
@@ -28,10 +30,10 @@ import yaml
 
 from ..base import CameraModel
 from ..errors import CalibrationError
-from . import basalt, colmap, kalibr, opencv, ros, woodscape
+from . import aria, basalt, colmap, kalibr, opencv, ros, woodscape
 from .rig import Rig
 
-FORMATS = ("opencv", "kalibr", "ros", "basalt", "woodscape", "colmap")
+FORMATS = ("opencv", "kalibr", "ros", "basalt", "woodscape", "aria", "colmap")
 
 
 def parse(text: str, source: str = "<string>", *, format: str | None = None) -> Rig:
@@ -45,17 +47,17 @@ def parse(text: str, source: str = "<string>", *, format: str | None = None) -> 
         return opencv.read(text, source)
     if format == "colmap" or (format is None and colmap.looks_like(text)):
         return colmap.read(text, source)
-    if stripped.startswith("{") or format in ("basalt", "woodscape"):
+    if stripped.startswith("{") or format in ("basalt", "woodscape", "aria"):
         try:
             doc = json.loads(text)
         except json.JSONDecodeError as exc:
             raise CalibrationError("(file)", f"not valid JSON: {exc}", source=source) from None
-        readers = {"basalt": basalt, "woodscape": woodscape}
+        readers = {"basalt": basalt, "woodscape": woodscape, "aria": aria}
         for name, reader in readers.items():
             if format == name or (format is None and reader.looks_like(doc)):
                 return reader.read_doc(doc, source)
-        raise CalibrationError("(top level)", "expected Basalt 'value0' or WoodScape 'intrinsic'",
-                               source=source)
+        raise CalibrationError("(top level)", "expected Basalt 'value0', WoodScape 'intrinsic' "
+                               "or Aria 'CameraCalibrations'", source=source)
     try:
         doc = yaml.safe_load(text)
     except yaml.YAMLError as exc:
@@ -67,7 +69,7 @@ def parse(text: str, source: str = "<string>", *, format: str | None = None) -> 
     raise CalibrationError(
         "(top level)",
         "unrecognised calibration format; expected OpenCV FileStorage, Kalibr camchain, ROS "
-        "CameraInfo, Basalt or WoodScape JSON, or COLMAP cameras.txt",
+        "CameraInfo, Basalt, WoodScape or Project Aria JSON, or COLMAP cameras.txt",
         source=source,
     )
 

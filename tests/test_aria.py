@@ -1,0 +1,84 @@
+"""Project Aria's FISHEYE624 model and calibration files, against projectaria-tools."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from projectaria_tools.core import calibration as aria
+from projectaria_tools.core.sophus import SE3
+
+from fisheyemotion import calib
+
+REAL = Path(__file__).resolve().parents[1] / "data" / "real"
+FACTORY = REAL / "aria_gen2_office" / "device_calibration_full.json"
+SUMMARY = REAL / "aria_gen2_office" / "camera_calibration_summary.json"
+LABELS = ("slam-side-left", "slam-side-right", "slam-front-left", "camera-rgb")
+
+
+def _peer(cam: calib.Fisheye624):
+    params = np.array([cam.params[n] for n in cam.param_names if n != "valid_radius"])
+    return aria.CameraCalibration("cam", aria.CameraModelType.FISHEYE624, params, SE3(),
+                                  cam.width, cam.height, None, np.pi, "serial")
+
+
+def _angle(a, b):
+    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.sum(a * b, axis=-1))
+
+
+@pytest.mark.parametrize("label", LABELS)
+def test_fisheye624_matches_projectaria_tools(label):
+    cam = calib.load(FACTORY, label)
+    peer = _peer(cam)
+    rng = np.random.default_rng(7)
+    uv = rng.uniform([0, 0], [cam.width - 1, cam.height - 1], size=(3000, 2))
+    rays, ok = cam.unproject(uv)
+    assert ok.mean() > 0.5
+    # Projection: ours and theirs of the same rays.
+    mine, ok_p = cam.project(rays[ok])
+    theirs = np.array([peer.project_no_checks(r) for r in rays[ok]])
+    assert ok_p.all()
+    assert np.abs(mine - theirs).max() < 1e-6
+    # Unprojection: their ray of each pixel, in pixels through our projection.
+    their_rays = np.array([peer.unproject_no_checks(u) for u in uv[ok]])
+    their_rays /= np.linalg.norm(their_rays, axis=-1, keepdims=True)
+    assert (_angle(rays[ok], their_rays) * cam.f).max() < 1e-6
+
+
+def test_valid_radius_limits_both_directions():
+    cam = calib.load(FACTORY, "slam-side-left")
+    assert cam.valid_radius == pytest.approx(300.0)
+    far = np.array([[cam.cx + 310.0, cam.cy], [cam.cx + 290.0, cam.cy]])
+    rays, ok = cam.unproject(far)
+    assert ok.tolist() == [False, True] and np.isnan(rays[0]).all()
+    import dataclasses
+
+    unlimited = dataclasses.replace(cam, valid_radius=0.0)
+    ray, ok = unlimited.unproject(far[:1])
+    assert ok[0]
+    pix, ok = cam.project(ray)
+    assert not ok[0] and np.isnan(pix).all()
+
+
+def test_factory_and_summary_files_give_the_same_cameras():
+    factory, summary = calib.load_rig(FACTORY), calib.load_rig(SUMMARY)
+    assert factory.reference == "device"
+    for name in summary.names:
+        assert summary[name] == factory[name]
+        np.testing.assert_allclose(summary.extrinsic(name), factory.extrinsic(name), atol=1e-9)
+
+
+def test_bad_aria_files_name_the_field(tmp_path):
+    import json
+
+    doc = json.loads(FACTORY.read_text())
+    doc["CameraCalibrations"][3]["Projection"]["Params"] = [1.0, 2.0]
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match=r"bad.json.*CameraCalibrations\[3\].*15"):
+        calib.load_rig(bad)
+    doc["CameraCalibrations"][3]["Projection"]["Name"] = "Spherical"
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match="unsupported Aria camera model"):
+        calib.load_rig(bad)
