@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any, TypeVar
 
 from .base import CameraModel
@@ -31,4 +32,9 @@ def model_class(name: str) -> type[CameraModel]:
 
 def create(name: str, **params: Any) -> CameraModel:
     """Build the model ``name`` from keyword parameters (``width`` and ``height`` included)."""
-    return model_class(name)(**params)
+    cls = model_class(name)
+    known = [f.name for f in dataclasses.fields(cls)]
+    unknown = sorted(set(params) - set(known))
+    if unknown:
+        raise ValueError(f"{name}: unknown parameter(s) {unknown}; expected {known}")
+    return cls(**params)

@@ -278,7 +278,9 @@ def test_bad_parameters_name_the_parameter(name, param, value):
 
 def test_unknown_model_lists_known_ones():
     with pytest.raises(ValueError, match="double_sphere"):
-        calib.create("fisheye624", fx=1)
+        calib.create("fisheye62", fx=1)
+    with pytest.raises(ValueError, match=r"fisheye624.*fx.*expected.*\bf\b"):
+        calib.create("fisheye624", fx=1, width=10, height=10)
 
 
 def test_models_are_frozen_and_keyword_only():

@@ -8,4 +8,5 @@ from .pinhole import Pinhole
 from .radial_poly import RadialPoly
 from .unified import Unified
 
-__all__ = ["DoubleSphere", "EnhancedUnified", "Fisheye624", "KannalaBrandt", "Pinhole", "RadialPoly", "Unified"]
+__all__ = ["DoubleSphere", "EnhancedUnified", "Fisheye624", "KannalaBrandt", "Pinhole", "RadialPoly",
+           "Unified"]
