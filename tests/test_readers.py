@@ -200,7 +200,8 @@ def test_opencv_written_kb_is_readable_as_cv2_fisheye(tmp_path):
     assert k[0, 0] == cam.fx and d.ravel()[3] == cam.k4 and fs.getNode("fisheye_model").real() == 1
 
 
-KALIBR_CAMERAS = [(n, c) for n, c in ALL_CAMERAS if n != "radial_poly"]
+# Kalibr has no form for WoodScape's polynomial or Aria's FISHEYE624 (writing one is an error).
+KALIBR_CAMERAS = [(n, c) for n, c in ALL_CAMERAS if n not in ("radial_poly", "fisheye624")]
 
 
 @pytest.mark.parametrize(("name", "cam"), KALIBR_CAMERAS, ids=[n for n, _ in KALIBR_CAMERAS])
