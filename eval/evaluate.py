@@ -16,6 +16,7 @@ from tqdm import tqdm
 from fisheyemotion.detect import CONSTRAINT_NAMES, MotionDetector
 from fisheyemotion.frames import to_gray
 from fisheyemotion.params import Params
+from fisheyemotion.road import Road
 from fisheyemotion.sequence import Sequence
 from fisheyemotion.synth import Renderer, load_scenario
 
@@ -70,7 +71,9 @@ class SequenceResult:
 
 def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
                       range_limit: float = 8.0, min_coverage: float = 0.0,
-                      ablation: bool = True, exact_flow: bool = False) -> SequenceResult:
+                      ablation: bool = True, exact_flow: bool = False,
+                      world: str = "scene", road: str = "given",
+                      camera_height: float | None = None) -> SequenceResult:
     """Detect on every consecutive frame pair of a sequence folder and score it.
 
     The detection on pair ``(k - gap, k)`` is on frame ``k``'s pixels (``gap = params.frame_gap``),
@@ -79,14 +82,25 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
     ``exact_flow=True`` replaces the flow method by the exact flow of the rendered scene
     (re-cast from the folder's ``scenario.yaml``): what the constraints do with perfect
     correspondences, separating their own limits from the flow's.
+
+    ``world`` gives the poses in another world frame, as users' tools write them: ``scene``
+    (z up, road at z = 0), ``first_camera`` (the first camera's frame, as most VO/SLAM systems
+    write it) or ``raised`` (z up with the road at z = -1.7 m, and rotated 30 deg about z).
+    ``road``: ``given`` (the scene's road, in that frame) or ``auto`` (estimated from the
+    stream, :mod:`fisheyemotion.ground`; ``camera_height`` if known).
     """
     params = Params() if params is None else params
     seq = Sequence(path)
     cam = seq.camera
     roi = seq.roi()
     valid = cam.valid_pixel_mask() & (True if roi is None else roi > 0)
-    main = MotionDetector(cam, params=params, roi=roi)
-    variants = {name: MotionDetector(cam, params=params.replace(weights=w), roi=roi)
+    moved, road_given = world_transform(world, seq.poses[0])
+    if road not in ("given", "auto"):
+        raise ValueError(f"road: expected 'given' or 'auto', got {road!r}")
+    road_arg = road_given if road == "given" else "auto"
+    main = MotionDetector(cam, road_arg, params=params, roi=roi, camera_height=camera_height)
+    variants = {name: MotionDetector(cam, road_arg, params=params.replace(weights=w), roi=roi,
+                                     camera_height=camera_height)
                 for name, w in ABLATION_WEIGHTS.items()} if ablation else {}
     obj_rows, frame_rows, abl_rows = [], [], []
     moving_above = static_above = None
@@ -100,7 +114,7 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
     for k in range(gap, len(seq)):
         grays.append(to_gray(seq.frame(k), "frame"))
         g0, g1 = grays.pop(0), grays[-1]
-        pose0, pose1 = seq.poses[k - gap], seq.poses[k]
+        pose0, pose1 = moved @ seq.poses[k - gap], moved @ seq.poses[k]
         if renderer is not None:
             flow, backward = np.nan_to_num(renderer.flow(k, gap=gap), nan=0.0), None
         elif params.fb_check:
@@ -146,6 +160,20 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
         sequence=seq.name, flow=params.flow, objects=pd.DataFrame(obj_rows),
         frames=pd.DataFrame(frame_rows), moving_above=moving_above, static_above=static_above,
         n_moving=n_moving, n_static=n_static, ablation=pd.DataFrame(abl_rows), examples=examples)
+
+
+def world_transform(world: str, first_pose: np.ndarray) -> tuple[np.ndarray, Road]:
+    """``new_from_scene`` for :func:`evaluate_sequence`'s ``world`` and the road in it."""
+    if world == "scene":
+        t = np.eye(4)
+    elif world == "first_camera":
+        t = np.linalg.inv(first_pose)
+    elif world == "raised":
+        c, s_ = np.cos(np.radians(30)), np.sin(np.radians(30))
+        t = np.array([[c, -s_, 0, 5.0], [s_, c, 0, -3.0], [0, 0, 1, -1.7], [0, 0, 0, 1]])
+    else:
+        raise ValueError(f"world: expected scene, first_camera or raised, got {world!r}")
+    return t, Road().transformed(t)
 
 
 def _exact_flow_renderer(seq: Sequence) -> Renderer:

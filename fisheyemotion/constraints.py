@@ -132,7 +132,8 @@ def constraints(
     valid = np.empty(len(p_flat), dtype=bool)
     constraint_kernel(
         p_flat, q_flat, np.ascontiguousarray(t0[:3, :3]), np.ascontiguousarray(t1[:3, :3]),
-        baseline / b, b, -road.up, float(road.height(t0[:3, 3])), params.lambda_h,
+        baseline / b, b, -road.up, float(road.height(t0[:3, 3])) if road.known else 0.0,
+        params.lambda_h,
         params.lambda_p, params.lambda_p_mode == "adaptive", params.lambda_p_ratio,
         params.depth_both_views, params.epipole_margin, params.horizon_margin,
         np.asarray(params.weights, dtype=np.float64), out, valid)

@@ -23,6 +23,7 @@ from .calib.transforms import check_rigid
 from .constraints import ConstraintResult, constraints
 from .flow import FlowEstimator, grid_average, grid_centres, grid_gather, grid_transfer, grid_upsample
 from .frames import to_gray
+from .ground import GroundEstimator
 from .ground_contact import standing_regions
 from .params import Params
 from .prior import EgoFlowPrior, lands_on, static_scene_targets
@@ -32,6 +33,9 @@ from .significance import cell_sigma, pixel_angle
 from .static_scene import TRIANGULATION_PARALLAX, StaticScene, triangulate_range
 
 CONSTRAINT_NAMES = ("epipolar", "depth", "height", "antiparallel")
+
+#: Metres: the provisional road's distance below the camera while ``road='auto'`` searches.
+PROVISIONAL_HEIGHT = 1.0
 
 #: Relative range difference within which a cell agrees with the static-scene model.
 SCENE_AGREEMENT = 0.05
@@ -132,20 +136,33 @@ class MotionDetector:
     ----------
     camera : CameraModel
         Any model of :mod:`fisheyemotion.calib`; frames must have its size.
-    road : Road, optional
-        Road plane in the world frame (default ``z = 0``).
+    road : Road or 'auto', optional
+        Road plane in the world frame. Default: the plane ``z = 0`` of the world frame (the
+        scenes of :mod:`fisheyemotion.synth`). ``'auto'``: estimated from the stream
+        (:mod:`fisheyemotion.ground`, the world frame is any): until a plausible plane is found
+        the road is :meth:`Road.unknown` (no height, anti-parallel or ground-contact terms);
+        :attr:`road` then holds the estimate. ``Road.unknown()``: never use a road.
     params : Params, optional
+    camera_height : float, optional
+        Metres, for ``road='auto'``: the estimate must put the camera this high (+-25 %).
     roi : ndarray, shape (H, W), optional
         Pixels to use (non-zero), e.g. without the vehicle's own body; default: every pixel
         the camera model gives a ray.
     """
 
-    def __init__(self, camera: CameraModel, road: Road | None = None,
-                 params: Params | None = None, *, roi: NDArray | None = None) -> None:
+    def __init__(self, camera: CameraModel, road: Road | str | None = None,
+                 params: Params | None = None, *, roi: NDArray | None = None,
+                 camera_height: float | None = None) -> None:
         if not isinstance(camera, CameraModel):
             raise ValueError("camera: expected a fisheyemotion.calib camera model, "
                              f"got {type(camera).__name__}")
         self.camera = camera
+        self.ground: GroundEstimator | None = None
+        if isinstance(road, str):
+            if road != "auto":
+                raise ValueError(f"road: expected a fisheyemotion.Road, None or 'auto', got {road!r}")
+            self.ground = GroundEstimator(camera_height=camera_height)
+            road = Road.unknown()
         self.road = Road() if road is None else road
         self.params = Params() if params is None else params
         if not isinstance(self.road, Road):
@@ -203,6 +220,7 @@ class MotionDetector:
         """
         gray = to_gray(frame, "frame", size=self.size)
         t = check_rigid(pose, "pose")
+        self._observe_ground(gray, t)
         full = len(self._history) == self._history.maxlen
         prev, prev_pose = self._history[0] if full else (None, None)
         self._history.append((gray, t))
@@ -246,6 +264,7 @@ class MotionDetector:
         """The dense flow ``detect`` uses, from gray frames and checked poses, with the ego prior
         as set in ``params.flow_prior``; with ``backward=True`` also the flow from ``curr`` to
         ``prev``."""
+        self._observe_ground(curr, pose1)
         forward = self._one_flow(prev, curr, pose0, pose1)
         if not backward:
             return forward
@@ -255,8 +274,8 @@ class MotionDetector:
         mode = self.params.flow_prior
         if mode == "none":
             return self._flow(a, b)
-        prior, seen = self._prior(pose_a, pose_b, self.road, view=self._pixel_valid,
-                                  scene=self.scene)
+        prior, seen = self._prior(pose_a, pose_b, self._prior_road(pose_a, pose_b),
+                                  view=self._pixel_valid, scene=self.scene)
         if mode == "ego":
             return self._flow(a, b, prior)
         maps = self._coords() + prior
@@ -343,7 +362,7 @@ class MotionDetector:
             likelihood = self._with_significance(res, sigma, likelihood)
         keep_scene = stream and self.scene is not None
         if (keep_scene or p.ground_contact) and not res.static_camera:
-            if p.ground_contact:  # every range counts here, however little parallax it has
+            if p.ground_contact and self.road.known:  # every range counts, however little parallax
                 ranges, _ = triangulate_range(self._rays0, rays1, t0, t1, far=p.prior_distance)
                 parallax = np.linalg.norm(np.cross(self._rays0 @ t0[:3, :3].T,
                                                    rays1 @ t1[:3, :3].T), axis=-1)
@@ -357,6 +376,33 @@ class MotionDetector:
                 with np.errstate(invalid="ignore"):
                     self.scene.add(self._rays0, ranges, t0, valid & (likelihood < p.threshold))
         return self._assemble(flow, cell_flow, res, likelihood, valid, stream=stream)
+
+    def _observe_ground(self, gray: NDArray[np.uint8], pose: NDArray) -> None:
+        """``road='auto'``: the estimator sees every frame (it tracks consecutive frames) and
+        refits now and then; a plausible fit becomes the road."""
+        if self.ground is None:
+            return
+        road = self.ground.observe(self.camera, gray, pose, mask=self._pixel_valid)
+        if road is not None:
+            self.road = road
+
+    def _prior_road(self, pose: NDArray, pose_b: NDArray) -> Road:
+        """The road the ego prior warps by: the known one or, while ``road='auto'`` has not
+        found one yet, a provisional plane: ``camera_height`` (or ``PROVISIONAL_HEIGHT``) below
+        the camera, its normal the camera's image-down axis with the direction of travel
+        projected out (a vehicle moves parallel to its road: this removes the camera's pitch).
+        The constraints never see it."""
+        if self.road.known or self.ground is None:
+            return self.road
+        down = pose[:3, 1].copy()
+        travel = pose_b[:3, 3] - pose[:3, 3]
+        norm = np.linalg.norm(travel)
+        if norm > 1e-6:
+            t = travel / norm
+            down -= (down @ t) * t
+        up = -down / np.linalg.norm(down)
+        height = self.ground.camera_height or PROVISIONAL_HEIGHT
+        return Road(normal=tuple(up), offset=float(up @ pose[:3, 3]) - height)
 
     def _with_significance(self, res: ConstraintResult, sigma, likelihood) -> NDArray:
         """The likelihood raised where the height or depth deviation is significant: at

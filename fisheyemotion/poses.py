@@ -1,51 +1,311 @@
-"""Pose files in TUM format: ``timestamp tx ty tz qx qy qz qw`` per line, ``world_from_cam``."""
+"""Pose sources: trajectory files, extrinsics, interpolation at frame times, frame matching.
+
+A :class:`Trajectory` is a time series of 4x4 rigid ``world_from_X`` poses, ``X`` being the
+camera or a body (IMU, device, vehicle) that a calibration's extrinsics relate to the camera.
+
+Formats read by :func:`read_poses` (detected from the name and the content)
+-------------------------------------------------------------------------
+=========  ============================================================================
+``tum``    ``timestamp tx ty tz qx qy qz qw`` per line, seconds (``#`` comments)
+``kitti``  12 numbers per line: the top 3x4 of the pose, row by row; no timestamps
+``euroc``  EuRoC/ASL ground-truth CSV: ``#timestamp [ns], p_RS_R_x, ..., q_RS_w, q_RS_x,
+           ...`` (quaternion w first), nanoseconds
+``aria``   Project Aria per-frame CSV: ``file,timestamp_ns,tx,ty,tz,qx,qy,qz,qw,...``
+           (poses named by their frame file)
+``mps``    Project Aria MPS trajectory CSV (``closed_loop_trajectory.csv``,
+           ``aria_trajectory.csv``): ``tracking_timestamp_us``, ``tx_world_device`` ...
+           ``qw_world_device``: *device* poses (compose with ``T_Device_Camera``)
+``npy``    ``.npy`` array ``(N, 4, 4)``; ``.npz`` with ``poses`` ``(N, 4, 4)`` and optional
+           ``timestamps`` ``(N,)`` seconds and ``names`` ``(N,)``
+=========  ============================================================================
+
+Every malformed file raises ValueError naming the file and the line or field.
+
+Frames are matched to poses by :class:`PoseMatcher`: by timestamp (interpolated: linear
+translation, slerp rotation, within ``max_gap`` seconds of a pose on each side), by frame name,
+or by index when the counts agree. A frame without a pose is an error naming the frame; poses are
+never shifted onto other frames.
+"""
 
 from __future__ import annotations
 
+import math
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .calib.transforms import make_transform, matrix_to_quat, quat_to_matrix
+from .calib.transforms import check_rigid, make_transform, matrix_to_quat, quat_to_matrix
+
+__all__ = ["POSE_FORMATS", "PoseMatcher", "Trajectory", "read_poses", "read_tum", "write_tum"]
+
+POSE_FORMATS = ("tum", "kitti", "euroc", "aria", "mps", "npy")
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """Poses ``(N, 4, 4)`` ``world_from_X`` with optional timestamps (seconds, increasing) and
+    names (e.g. the frame files they belong to)."""
+
+    poses: NDArray[np.float64]
+    stamps: NDArray[np.float64] | None = None
+    names: tuple[str, ...] | None = None
+    source: str = "<poses>"
+
+    def __post_init__(self) -> None:
+        poses = np.asarray(self.poses, dtype=np.float64)
+        if poses.ndim != 3 or poses.shape[1:] != (4, 4) or len(poses) == 0:
+            raise ValueError(f"{self.source}: expected poses of shape (N, 4, 4), N >= 1, got "
+                             f"{poses.shape}")
+        for i, pose in enumerate(poses):
+            try:
+                check_rigid(pose, "pose")
+            except ValueError as exc:
+                raise ValueError(f"{self.source}: pose {i}: {exc}") from None
+        object.__setattr__(self, "poses", poses)
+        if self.stamps is not None:
+            stamps = np.asarray(self.stamps, dtype=np.float64)
+            if stamps.shape != (len(poses),) or not np.isfinite(stamps).all():
+                raise ValueError(f"{self.source}: expected {len(poses)} finite timestamps, got "
+                                 f"shape {stamps.shape}")
+            steps = np.diff(stamps)
+            if (steps <= 0).any():
+                i = int(np.argmax(steps <= 0)) + 1
+                raise ValueError(f"{self.source}: timestamps must increase; pose {i} "
+                                 f"(t={stamps[i]!r}) does not follow t={stamps[i - 1]!r}")
+            object.__setattr__(self, "stamps", stamps)
+        if self.names is not None:
+            names = tuple(str(n) for n in self.names)
+            if len(names) != len(poses) or len(set(names)) != len(names):
+                raise ValueError(f"{self.source}: expected {len(poses)} distinct names")
+            object.__setattr__(self, "names", names)
+
+    def __len__(self) -> int:
+        return len(self.poses)
+
+    def compose(self, x_from_cam: NDArray) -> Trajectory:
+        """The camera's trajectory from a body's: ``world_from_cam = world_from_X @ X_from_cam``
+        (``X_from_cam``: the calibration's extrinsic of the camera, e.g. Basalt's ``T_imu_cam``,
+        the inverse of Kalibr's ``T_cam_imu``, WoodScape's vehicle extrinsic, Aria's
+        ``T_Device_Camera``)."""
+        extrinsic = check_rigid(x_from_cam, "x_from_cam")
+        return Trajectory(self.poses @ extrinsic, self.stamps, self.names, self.source)
+
+    def at(self, times: NDArray | float, *, max_gap: float) -> NDArray[np.float64]:
+        """Poses interpolated at ``times`` (seconds): translation linearly, rotation by slerp.
+
+        A time must have a pose within ``max_gap`` seconds on each side (or coincide with one,
+        or lie within ``max_gap`` beyond either end, which takes the end pose); anything else
+        raises ValueError naming the time.
+        """
+        if self.stamps is None:
+            raise ValueError(f"{self.source}: has no timestamps to interpolate at")
+        if not isinstance(max_gap, int | float) or not math.isfinite(max_gap) or max_gap < 0:
+            raise ValueError(f"max_gap: expected a finite number of seconds >= 0, got {max_gap!r}")
+        from scipy.spatial.transform import Rotation, Slerp
+
+        s, eps = self.stamps, 1e-9
+        t = np.atleast_1d(np.asarray(times, dtype=np.float64))
+        out = np.empty((len(t), 4, 4))
+        for k, tk in enumerate(t):
+            if not math.isfinite(tk):
+                raise ValueError(f"{self.source}: time {tk!r} is not finite")
+            hi = int(np.searchsorted(s, tk))
+            if hi < len(s) and s[hi] - tk <= eps:
+                out[k] = self.poses[hi]
+            elif hi > 0 and tk - s[hi - 1] <= eps:
+                out[k] = self.poses[hi - 1]
+            elif hi == 0 or hi == len(s):
+                end = 0 if hi == 0 else len(s) - 1
+                if abs(s[end] - tk) > max_gap:
+                    raise ValueError(f"{self.source}: t={tk!r} is outside the poses' time span "
+                                     f"[{s[0]!r}, {s[-1]!r}] by more than {max_gap} s")
+                out[k] = self.poses[end]
+            else:
+                lo = hi - 1
+                if tk - s[lo] > max_gap or s[hi] - tk > max_gap:
+                    raise ValueError(f"{self.source}: t={tk!r} falls in a gap of "
+                                     f"{s[hi] - s[lo]:.4g} s between poses (more than {max_gap} s "
+                                     "to one of them)")
+                w = (tk - s[lo]) / (s[hi] - s[lo])
+                rot = Slerp([0.0, 1.0], Rotation.from_matrix(self.poses[[lo, hi], :3, :3]))([w])
+                out[k] = make_transform(rot.as_matrix()[0],
+                                        (1 - w) * self.poses[lo, :3, 3] + w * self.poses[hi, :3, 3])
+        return out
+
+
+# ---- readers --------------------------------------------------------------------------------
+
+def _text(p: Path) -> str:
+    try:
+        return p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ValueError(f"{p}: no such pose file") from None
+    except UnicodeDecodeError:
+        raise ValueError(f"{p}: not a text pose file (UTF-8); .npy/.npz arrays need their "
+                         "suffix") from None
+    except OSError as exc:
+        raise ValueError(f"{p}: cannot be read: {exc}") from None
+
+
+def _numbers(parts: list[str], p: Path, lineno: int) -> list[float]:
+    try:
+        v = [float(x) for x in parts]
+    except ValueError:
+        raise ValueError(f"{p}: line {lineno}: expected numbers, got {' '.join(parts)[:80]!r}") from None
+    if not all(math.isfinite(x) for x in v):
+        raise ValueError(f"{p}: line {lineno}: expected finite numbers")
+    return v
+
+
+def _pose(q_xyzw, t, p: Path, lineno: int) -> NDArray[np.float64]:
+    try:
+        return make_transform(quat_to_matrix(q_xyzw), t)
+    except ValueError as exc:
+        raise ValueError(f"{p}: line {lineno}: {exc}") from None
+
+
+def _rows(text: str) -> list[tuple[int, list[str]]]:
+    rows = []
+    for lineno, line in enumerate(text.splitlines(), start=1):
+        s = line.strip()
+        if s and not s.startswith("#"):
+            rows.append((lineno, s.replace(",", " ").split()))
+    return rows
 
 
 def read_tum(path: str | os.PathLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Timestamps ``(N,)`` and poses ``(N, 4, 4)`` (``world_from_cam``) of a TUM file.
+    """Timestamps ``(N,)`` and poses ``(N, 4, 4)`` of a TUM file (``read_poses`` for more)."""
+    traj = read_poses(path, format="tum")
+    return traj.stamps, traj.poses
 
-    Lines starting with ``#`` and blank lines are skipped. Raises ValueError naming the file and
-    line for anything else that is not 8 finite numbers with a unit quaternion.
-    """
+
+def read_poses(path: str | os.PathLike, *, format: str | None = None) -> Trajectory:
+    """Read a trajectory file (:data:`POSE_FORMATS`; detected when ``format`` is None)."""
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ValueError(f"{p}: no such pose file") from None
+    if format is not None and format not in POSE_FORMATS:
+        raise ValueError(f"format: expected one of {', '.join(POSE_FORMATS)}, got {format!r}")
+    if format == "npy" or (format is None and p.suffix.lower() in (".npy", ".npz")):
+        return _read_array(p)
+    text = _text(p)
+    first = next((line.strip() for line in text.splitlines() if line.strip()), "")
+    header = first.lower().replace(" ", "")
+    if format == "aria" or (format is None and header.startswith("file,timestamp_ns")):
+        return _read_aria(p, text)
+    if format == "mps" or (format is None and "tx_world_device" in header):
+        return _read_mps(p, text)
+    if format == "euroc" or (format is None and ("p_rs_r_x" in header or "q_rs_w" in header)):
+        return _read_euroc(p, text)
+    rows = _rows(text)
+    if not rows:
+        raise ValueError(f"{p}: no poses")
+    width = len(rows[0][1])
+    if format == "kitti" or (format is None and width == 12):
+        return _read_kitti(p, rows)
+    if format == "tum" or (format is None and width == 8):
+        return _read_tum(p, rows)
+    raise ValueError(f"{p}: line {rows[0][0]}: cannot tell the pose format from {width} "
+                     f"columns; expected TUM (8), KITTI (12), EuRoC CSV, Aria CSV or .npy/.npz")
+
+
+def _read_tum(p: Path, rows) -> Trajectory:
     stamps, poses = [], []
-    for lineno, line in enumerate(text.splitlines(), start=1):
-        s = line.strip()
-        if not s or s.startswith("#"):
-            continue
-        parts = s.replace(",", " ").split()
+    for lineno, parts in rows:
         if len(parts) != 8:
             raise ValueError(f"{p}: line {lineno}: expected 8 numbers "
                              f"'timestamp tx ty tz qx qy qz qw', got {len(parts)}")
+        v = _numbers(parts, p, lineno)
+        stamps.append(v[0])
+        poses.append(_pose(v[4:8], v[1:4], p, lineno))
+    return Trajectory(np.array(poses), np.array(stamps), source=str(p))
+
+
+def _read_kitti(p: Path, rows) -> Trajectory:
+    poses = []
+    for lineno, parts in rows:
+        if len(parts) != 12:
+            raise ValueError(f"{p}: line {lineno}: expected 12 numbers (a 3x4 pose), got {len(parts)}")
+        m = np.eye(4)
+        m[:3] = np.array(_numbers(parts, p, lineno)).reshape(3, 4)
         try:
-            v = [float(x) for x in parts]
-        except ValueError:
-            raise ValueError(f"{p}: line {lineno}: expected numbers, got {s!r}") from None
-        if not np.isfinite(v).all():
-            raise ValueError(f"{p}: line {lineno}: expected finite numbers")
-        try:
-            r = quat_to_matrix(v[4:8])
+            check_rigid(m, "pose")
         except ValueError as exc:
             raise ValueError(f"{p}: line {lineno}: {exc}") from None
-        stamps.append(v[0])
-        poses.append(make_transform(r, v[1:4]))
+        poses.append(m)
+    return Trajectory(np.array(poses), source=str(p))
+
+
+def _read_euroc(p: Path, text: str) -> Trajectory:
+    stamps, poses = [], []
+    for lineno, parts in _rows(text):
+        if len(parts) < 8:
+            raise ValueError(f"{p}: line {lineno}: expected 'timestamp [ns], p x y z, q w x y z, "
+                             f"...', got {len(parts)} columns")
+        v = _numbers(parts[:8], p, lineno)
+        stamps.append(v[0] * 1e-9)
+        poses.append(_pose([v[5], v[6], v[7], v[4]], v[1:4], p, lineno))
     if not poses:
         raise ValueError(f"{p}: no poses")
-    return np.array(stamps), np.array(poses)
+    return Trajectory(np.array(poses), np.array(stamps), source=str(p))
+
+
+def _read_csv_columns(p: Path, text: str, need: tuple[str, ...], name: str | None,
+                      time_scale: float) -> Trajectory:
+    """A CSV with a header: ``need`` = (time, tx, ty, tz, qx, qy, qz, qw) column names."""
+    lines = [line for line in text.splitlines() if line.strip()]
+    head = [h.strip() for h in lines[0].split(",")]
+    wanted = need + ((name,) if name else ())
+    missing = [n for n in wanted if n not in head]
+    if missing:
+        raise ValueError(f"{p}: header: missing column(s) {missing}")
+    col = {n: head.index(n) for n in wanted}
+    names, stamps, poses = [], [], []
+    for lineno, line in enumerate(lines[1:], start=2):
+        parts = [x.strip() for x in line.split(",")]
+        if len(parts) != len(head):
+            raise ValueError(f"{p}: line {lineno}: expected {len(head)} columns, got {len(parts)}")
+        v = _numbers([parts[col[n]] for n in need], p, lineno)
+        if name:
+            names.append(parts[col[name]])
+        stamps.append(v[0] * time_scale)
+        poses.append(_pose(v[4:8], v[1:4], p, lineno))
+    if not poses:
+        raise ValueError(f"{p}: no poses")
+    return Trajectory(np.array(poses), np.array(stamps), tuple(names) if name else None,
+                      source=str(p))
+
+
+def _read_aria(p: Path, text: str) -> Trajectory:
+    return _read_csv_columns(p, text, ("timestamp_ns", "tx", "ty", "tz", "qx", "qy", "qz", "qw"),
+                             "file", 1e-9)
+
+
+def _read_mps(p: Path, text: str) -> Trajectory:
+    cols = tuple(f"{c}_world_device" for c in ("tx", "ty", "tz", "qx", "qy", "qz", "qw"))
+    return _read_csv_columns(p, text, ("tracking_timestamp_us", *cols), None, 1e-6)
+
+
+def _read_array(p: Path) -> Trajectory:
+    try:
+        data = np.load(p, allow_pickle=False)
+    except FileNotFoundError:
+        raise ValueError(f"{p}: no such pose file") from None
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{p}: cannot be read as a numpy array: {exc}") from None
+    if isinstance(data, np.ndarray):
+        poses, stamps, names = data, None, None
+    else:
+        with data:
+            if "poses" not in data.files:
+                raise ValueError(f"{p}: poses: missing (arrays: {data.files})")
+            poses = data["poses"]
+            stamps = data["timestamps"] if "timestamps" in data.files else None
+            names = tuple(data["names"].tolist()) if "names" in data.files else None
+    if poses.dtype.kind not in "fiu":
+        raise ValueError(f"{p}: poses: expected numbers, got dtype {poses.dtype}")
+    return Trajectory(poses, stamps, names, source=str(p))
 
 
 def write_tum(path: str | os.PathLike, timestamps, poses) -> None:
@@ -56,3 +316,97 @@ def write_tum(path: str | os.PathLike, timestamps, poses) -> None:
         vals = [t, *pose[:3, 3], *q]
         lines.append(" ".join(repr(float(x)) for x in vals))
     Path(path).write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+# ---- matching frames to poses ---------------------------------------------------------------
+
+MATCHES = ("auto", "timestamp", "name", "index")
+
+
+class PoseMatcher:
+    """The pose of each frame of an input.
+
+    Parameters
+    ----------
+    trajectory : Trajectory
+        Camera poses (``world_from_cam``).
+    match : {'auto', 'timestamp', 'name', 'index'}
+        ``timestamp``: interpolated at the frame's time (see :meth:`Trajectory.at`); ``name``:
+        the pose named like the frame file (or, for poses without names, the pose whose index
+        is the frame's number, ``000012.png`` -> 12); ``index``: the k-th pose for the k-th
+        frame, only when the input has exactly as many frames as there are poses (``frames``).
+        ``auto``: by name when the poses are named, by timestamp when frames and poses both have
+        times, else by the frame's number.
+    max_gap : float
+        Seconds (timestamp matching).
+    frames : int, optional
+        Number of frames of the input, when known (checked against the poses for ``index``).
+    """
+
+    def __init__(self, trajectory: Trajectory, match: str = "auto", *, max_gap: float = 0.05,
+                 frames: int | None = None) -> None:
+        if match not in MATCHES:
+            raise ValueError(f"match: expected one of {', '.join(MATCHES)}, got {match!r}")
+        if not isinstance(max_gap, int | float) or not math.isfinite(max_gap) or max_gap < 0:
+            raise ValueError(f"max_dt: expected a finite number of seconds >= 0, got {max_gap!r}")
+        self.trajectory, self.match, self.max_gap = trajectory, match, float(max_gap)
+        src = trajectory.source
+        if match == "index" and frames is not None and frames != len(trajectory):
+            raise ValueError(f"{src}: {len(trajectory)} poses for {frames} frames; match by "
+                             "timestamp or frame name instead of by index")
+        if match == "timestamp" and trajectory.stamps is None:
+            raise ValueError(f"{src}: has no timestamps; match by name or index")
+        self._by_name = ({n: i for i, n in enumerate(trajectory.names)}
+                         if trajectory.names is not None else None)
+
+    def __call__(self, index: int, name: str | None, stamp: float | None
+                 ) -> tuple[float | None, NDArray[np.float64]]:
+        """``(time, world_from_cam)`` of frame ``index`` (file ``name``, time ``stamp`` in
+        seconds, each None when unknown)."""
+        traj, where = self.trajectory, _frame_label(index, name, stamp)
+        mode = self.match
+        if mode == "auto":
+            if self._by_name is not None and name is not None:
+                mode = "name"
+            elif traj.stamps is not None and stamp is not None:
+                mode = "timestamp"
+            else:
+                mode = "name" if name is not None and _number(name) is not None else "index"
+        if mode == "timestamp":
+            if stamp is None:
+                raise ValueError(f"{where}: has no timestamp to match poses by; its name is not "
+                                 "a time (use --match name or index)")
+            try:
+                return stamp, traj.at(stamp, max_gap=self.max_gap)[0]
+            except ValueError as exc:
+                raise ValueError(f"{where}: {exc}") from None
+        if mode == "name":
+            if name is None:
+                raise ValueError(f"{where}: has no name to match poses by")
+            if self._by_name is not None:
+                key = name if name in self._by_name else Path(name).name
+                if key not in self._by_name:
+                    raise ValueError(f"{where}: {traj.source} has no pose named {Path(name).name!r}")
+                i = self._by_name[key]
+            else:
+                i = _number(name)
+                if i is None or not 0 <= i < len(traj):
+                    raise ValueError(f"{where}: no pose {i} in {traj.source} ({len(traj)} poses)")
+            return (None if traj.stamps is None else float(traj.stamps[i])), traj.poses[i]
+        if index >= len(traj):
+            raise ValueError(f"{where}: {traj.source} has only {len(traj)} poses")
+        return (None if traj.stamps is None else float(traj.stamps[index])), traj.poses[index]
+
+
+def _number(name: str) -> int | None:
+    stem = Path(name).stem
+    return int(stem) if stem.isdigit() and len(stem) < 16 else None
+
+
+def _frame_label(index: int, name: str | None, stamp: float | None) -> str:
+    label = f"frame {index}"
+    if name is not None:
+        label += f" ({Path(name).name})"
+    elif stamp is not None:
+        label += f" (t={stamp!r})"
+    return label

@@ -55,7 +55,7 @@ def static_scene_targets(camera: CameraModel, rays: NDArray[np.float64], pose0: 
     """
     dirs = rays @ pose0[:3, :3].T
     centre0 = pose0[:3, 3]
-    height = float(road.height(centre0))
+    height = float(road.height(centre0)) if road.known else 0.0
     down = dirs @ -road.up
     with np.errstate(invalid="ignore", divide="ignore"):
         to_road = np.where((down > _HORIZON_SIN) & (height > 0), height / down, np.inf)

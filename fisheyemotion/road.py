@@ -20,17 +20,38 @@ class Road:
         Up direction (normalised on construction).
     offset : float
         Signed distance of the plane from the world origin along ``normal`` (metres).
+    known : bool
+        False for :meth:`unknown`: no road is known (indoors, a head-mounted camera, or before
+        :class:`fisheyemotion.ground.GroundEstimator` has found one). The positive-height and
+        anti-parallel constraints and the ground-contact test then do not apply, and the ego
+        prior uses the far field (and the scene model) only.
     """
 
     normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
     offset: float = 0.0
+    known: bool = True
+
+    @classmethod
+    def unknown(cls) -> Road:
+        """No road: only the epipolar and positive-depth constraints apply."""
+        return cls(known=False)
 
     def __post_init__(self) -> None:
-        n = np.asarray(self.normal, dtype=np.float64)
-        if n.shape != (3,) or not np.isfinite(n).all() or np.linalg.norm(n) < 1e-12:
+        try:
+            n = np.asarray(self.normal, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"normal: expected 3 finite numbers, got {self.normal!r}") from None
+        with np.errstate(over="ignore", invalid="ignore"):
+            norm = np.linalg.norm(n / np.abs(n).max()) if n.shape == (3,) and np.isfinite(n).all() \
+                and np.abs(n).max() > 0 else 0.0
+        if n.shape != (3,) or not np.isfinite(n).all() or not norm > 1e-12:
             raise ValueError(f"normal: expected 3 finite numbers, not all zero, got {self.normal!r}")
-        if not np.isfinite(self.offset):
+        if isinstance(self.offset, bool) or not isinstance(self.offset, int | float | np.number) \
+                or not np.isfinite(self.offset):
             raise ValueError(f"offset: expected a finite number, got {self.offset!r}")
+        if not isinstance(self.known, bool):
+            raise ValueError(f"known: expected a bool, got {self.known!r}")
+        n = n / np.abs(n).max()  # no overflow for normals like (1e300, 1e300, 1e300)
         object.__setattr__(self, "normal", tuple(float(v) for v in n / np.linalg.norm(n)))
         object.__setattr__(self, "offset", float(self.offset))
 
@@ -48,7 +69,7 @@ class Road:
         (``new_from_old``, 4x4 rigid)."""
         t = check_rigid(transform, "transform")
         n = t[:3, :3] @ self.up
-        return Road(normal=tuple(n), offset=self.offset + float(n @ t[:3, 3]))
+        return Road(normal=tuple(n), offset=self.offset + float(n @ t[:3, 3]), known=self.known)
 
     @classmethod
     def from_camera(cls, *, height: float, cam_from_road: ArrayLike,

@@ -111,6 +111,10 @@ class StaticScene:
         """Stored points."""
         return sum(len(s) for s in self._sets)
 
+    def points(self) -> NDArray[np.float64]:
+        """All stored world points ``(N, 3)``, newest first."""
+        return np.concatenate(list(self._sets)) if self._sets else np.empty((0, 3))
+
     def clear(self) -> None:
         self._sets.clear()
         self._version += 1

@@ -1,0 +1,196 @@
+"""The road plane in the user's world frame, estimated from the stream itself.
+
+Users' poses come in their own world frame (a SLAM map, the first camera, an odometry frame): the
+road is rarely ``z = 0``. :class:`GroundEstimator` tracks corners in the lower image between the
+frames of each pair (OpenCV's pyramidal Lucas-Kanade, 6 levels, forward-backward checked: it
+needs no prior, unlike the dense flow, which follows whatever road it is warped by),
+triangulates them with the poses, and fits a plane to the points below the camera: RANSAC
+(scikit-image's) with a plane model, then a least-squares fit to the inliers.
+
+A fit is accepted when it is plausible:
+
+- at least ``min_points`` candidate points and ``min_inlier_share`` of them on the plane
+  (within ``tolerance`` metres per metre of range);
+- the camera above it by ``min_height``..``max_height`` metres (``camera_height`` +-25 % when
+  given);
+- the plane is not steep: its normal within ``max_tilt`` of the camera's mean "down" direction
+  over the stream is not required (cameras are mounted at any angle), but the plane must lie
+  below the camera's centre along the normal that points to the camera.
+
+Before a plausible fit, the road is :meth:`fisheyemotion.Road.unknown`: the constraints that
+need a road (height, anti-parallel, ground contact) are off, the others work.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from numpy.typing import NDArray
+from skimage.measure import ransac
+
+from .road import Road
+
+__all__ = ["GroundEstimator", "PlaneModel", "check_road"]
+
+
+class PlaneModel:
+    """``n . x = d`` with unit ``n``, for :func:`skimage.measure.ransac`. Residuals are distances
+    to the plane divided by each point's range from the camera: triangulated depth errors grow
+    with range, so a fixed tolerance would keep only the nearest points."""
+
+    def __init__(self, normal: NDArray | None = None, offset: float = 0.0) -> None:
+        self.normal, self.offset = normal, offset
+
+    @classmethod
+    def from_estimate(cls, points: NDArray[np.float64], ranges: NDArray | None = None
+                      ) -> PlaneModel:
+        centre = points.mean(axis=0)
+        try:
+            _, s, vt = np.linalg.svd(points - centre)
+        except np.linalg.LinAlgError:
+            return cls()
+        if len(points) < 3 or s[1] < 1e-9:
+            return cls()
+        n = vt[-1]
+        return cls(n, float(n @ centre))
+
+    def __bool__(self) -> bool:
+        return self.normal is not None
+
+    def residuals(self, points: NDArray[np.float64], ranges: NDArray[np.float64]
+                  ) -> NDArray[np.float64]:
+        return np.abs(points @ self.normal - self.offset) / ranges
+
+
+class GroundEstimator:
+    """Fits the road plane to static world points seen below the camera.
+
+    Parameters
+    ----------
+    camera_height : float, optional
+        Metres, when known: the fit must put the camera this high (+-25 %).
+    min_points : int
+    min_inlier_share : float
+    tolerance : float
+        RANSAC's inlier distance, metres per metre of range from the camera.
+    min_height, max_height : float
+        Metres: the plausible camera heights when ``camera_height`` is not given.
+    seed : int
+        RANSAC's random generator (reproducible runs).
+    """
+
+    def __init__(self, *, camera_height: float | None = None, min_points: int = 150,
+                 min_inlier_share: float = 0.2, tolerance: float = 0.02,
+                 min_height: float = 0.2, max_height: float = 5.0, seed: int = 0) -> None:
+        if camera_height is not None and (not np.isfinite(camera_height) or camera_height <= 0):
+            raise ValueError(f"camera_height: expected a positive number of metres, got "
+                             f"{camera_height!r}")
+        self.camera_height = camera_height
+        self.min_points, self.min_inlier_share = int(min_points), float(min_inlier_share)
+        self.tolerance, self.seed = float(tolerance), int(seed)
+        lo, hi = (0.75 * camera_height, 1.25 * camera_height) if camera_height else (
+            min_height, max_height)
+        self.height_range = (float(lo), float(hi))
+        self.road: Road | None = None
+        self.inliers = 0
+        self._points: list[NDArray[np.float64]] = []
+        self._last: tuple[NDArray, NDArray] | None = None
+        self._pairs = 0
+        self.refit_every = 15
+
+    def observe(self, camera, gray: NDArray[np.uint8], pose: NDArray, *,
+                mask: NDArray | None = None) -> Road | None:
+        """The next frame of the stream: track corners of the lower half of the previous frame
+        observed into this one (consecutive frames keep the displacements small for the
+        tracker), triangulate them with the poses, keep the points (the last few pairs) and try
+        a fit (:meth:`fit`)."""
+        import cv2
+
+        from .static_scene import TRIANGULATION_PARALLAX, triangulate_range
+
+        if self._last is not None and np.array_equal(self._last[1], pose):
+            return None  # this frame was observed already
+        last, self._last = self._last, (gray.copy(), np.array(pose, dtype=np.float64))
+        if last is None or np.linalg.norm(pose[:3, 3] - last[1][:3, 3]) < 1e-3:
+            return None
+        (gray0, pose0), gray1, pose1 = last, gray, pose
+
+        h, w = gray0.shape
+        lower = np.zeros((h, w), np.uint8)
+        lower[h // 2:] = 255
+        if mask is not None:
+            lower &= np.where(mask, 255, 0).astype(np.uint8)
+        corners = cv2.goodFeaturesToTrack(gray0, maxCorners=600, qualityLevel=0.005,
+                                          minDistance=7, mask=lower)
+        if corners is None or len(corners) < 10:
+            return None
+        lk = {"winSize": (21, 21), "maxLevel": 6,
+              "criteria": (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 40, 0.01)}
+        fwd, ok1, _ = cv2.calcOpticalFlowPyrLK(gray0, gray1, corners, None, **lk)
+        back, ok2, _ = cv2.calcOpticalFlowPyrLK(gray1, gray0, fwd, None, **lk)
+        good = (ok1[:, 0] == 1) & (ok2[:, 0] == 1) & (
+            np.linalg.norm(back - corners, axis=-1)[:, 0] < 0.5)
+        u0, u1 = corners[good, 0].astype(np.float64), fwd[good, 0].astype(np.float64)
+        r0, v0 = camera.unproject(u0)
+        r1, v1 = camera.unproject(u1)
+        lam, ok = triangulate_range(r0, r1, pose0, pose1, far=100.0,
+                                    min_parallax=TRIANGULATION_PARALLAX)
+        ok &= v0 & v1
+        points = pose0[:3, 3] + lam[ok][:, None] * (r0[ok] @ pose0[:3, :3].T)
+        self._points = (self._points + [points])[-12:]
+        self._pairs += 1
+        if self.road is not None and self._pairs % self.refit_every:
+            return None
+        return self.fit(np.concatenate(self._points), pose0[:3, 3], pose0[:3, 1])
+
+    def fit(self, points: NDArray[np.float64], centre: NDArray[np.float64],
+            down: NDArray[np.float64]) -> Road | None:
+        """Fit to world ``points`` (N, 3) around the camera centre ``centre``; ``down`` is the
+        camera's rough down direction (its image's y axis, in the world), used only to choose
+        the candidates below it. Returns the road when the fit is plausible (also kept in
+        :attr:`road`), else None."""
+        rel = points - centre
+        dist = np.linalg.norm(rel, axis=-1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            below = (rel @ down) / dist > 0.3  # at least ~17 deg below the camera's horizon
+        keep = below & (dist < 25.0) & np.isfinite(dist)
+        cand, rng = points[keep], dist[keep]
+        if len(cand) < self.min_points:
+            return None
+        model, inliers = ransac((cand, rng), PlaneModel, min_samples=3,
+                                residual_threshold=self.tolerance, max_trials=200,
+                                rng=np.random.default_rng(self.seed))
+        if model is None or inliers is None or inliers.mean() < self.min_inlier_share:
+            return None
+        refined = PlaneModel.from_estimate(cand[inliers])
+        if not refined:
+            return None
+        n, d = refined.normal, refined.offset
+        height = float(n @ centre - d)
+        if height < 0:
+            n, d, height = -n, -d, -height
+        lo, hi = self.height_range
+        if not lo <= height <= hi:
+            return None
+        self.road, self.inliers = Road(normal=tuple(n), offset=float(d)), int(inliers.sum())
+        return self.road
+
+
+def check_road(road: Road, poses: NDArray[np.float64], source: str = "road") -> list[str]:
+    """Warnings for a given road that is implausible for these camera poses (N, 4, 4): a camera
+    on or under it, or far above it. Returns the messages (also issued as warnings)."""
+    if not road.known:
+        return []
+    heights = road.height(poses[:, :3, 3])
+    notes = []
+    if (heights <= 0.05).any():
+        i = int(np.argmin(heights))
+        notes.append(f"{source}: the camera is on or under the road at pose {i} (height "
+                     f"{heights[i]:.2f} m); is the road's normal pointing up in this world frame?")
+    elif (heights > 10).all():
+        notes.append(f"{source}: the camera is {np.median(heights):.1f} m above the road; is the "
+                     "road in this world frame?")
+    for note in notes:
+        warnings.warn(note, stacklevel=2)
+    return notes

@@ -1,0 +1,140 @@
+"""Pose sources (formats, interpolation, matching) and the road estimated in any world frame."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from fisheyemotion.calib.transforms import make_transform, matrix_to_quat
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import fisheyemotion as fm
+from fisheyemotion import synth
+from fisheyemotion.ground import GroundEstimator, check_road
+from fisheyemotion.poses import PoseMatcher, Trajectory, read_poses, write_tum
+
+from .cameras import TUMVI_KB
+from .scenes import random_rotation
+
+RNG = np.random.default_rng(3)
+POSES = np.array([make_transform(random_rotation(RNG), RNG.normal(size=3)) for _ in range(5)])
+STAMPS = np.array([0.0, 0.1, 0.2, 0.3, 0.4]) + 1000.0
+
+
+def test_every_format_reads_the_same_poses(tmp_path):
+    write_tum(tmp_path / "a.txt", STAMPS, POSES)
+    (tmp_path / "a.kitti").write_text("\n".join(" ".join(map(repr, p[:3].ravel().tolist())) for p in POSES))
+    lines = ["#timestamp [ns], p_RS_R_x [m], p_RS_R_y [m], p_RS_R_z [m], q_RS_w [], q_RS_x [], "
+             "q_RS_y [], q_RS_z []"]
+    for t, p in zip(STAMPS, POSES, strict=True):
+        x, y, z, w = (float(v) for v in matrix_to_quat(p[:3, :3]))
+        lines.append(",".join(map(repr, [int(round(t * 1e9)), *p[:3, 3].tolist(), w, x, y, z])))
+    (tmp_path / "a.csv").write_text("\n".join(lines))
+    np.save(tmp_path / "a.npy", POSES)
+    np.savez(tmp_path / "a.npz", poses=POSES, timestamps=STAMPS, names=np.array(list("abcde")))
+    for name in ("a.txt", "a.kitti", "a.csv", "a.npy", "a.npz"):
+        traj = read_poses(tmp_path / name)
+        np.testing.assert_allclose(traj.poses, POSES, atol=1e-9, err_msg=name)
+    assert read_poses(tmp_path / "a.npz").names == tuple("abcde")
+    np.testing.assert_allclose(read_poses(tmp_path / "a.csv").stamps, STAMPS, atol=1e-9)
+
+
+def test_aria_pose_csv_is_named_by_frame():
+    traj = read_poses("data/real/aria_gen2_office/slam-side-left/poses_T_odometry_camera.csv")
+    assert len(traj) == 9 and traj.names[0] == "000000.png"
+    pose_time, pose = PoseMatcher(traj)(3, "000003.png", None)
+    np.testing.assert_array_equal(pose, traj.poses[3])
+
+
+@settings(max_examples=30, deadline=None)
+@given(w=st.floats(0.0, 1.0))
+def test_interpolation_is_linear_in_translation_and_slerp_in_rotation(w):
+    traj = Trajectory(POSES[:2], STAMPS[:2])
+    got = traj.at(STAMPS[0] + w * 0.1, max_gap=0.2)[0]
+    np.testing.assert_allclose(got[:3, 3], (1 - w) * POSES[0, :3, 3] + w * POSES[1, :3, 3])
+    # Equal angles from both ends, in proportion.
+    rel = POSES[0, :3, :3].T @ POSES[1, :3, :3]
+    total = np.arccos(np.clip((np.trace(rel) - 1) / 2, -1, 1))
+    part = np.arccos(np.clip((np.trace(POSES[0, :3, :3].T @ got[:3, :3]) - 1) / 2, -1, 1))
+    assert part == pytest.approx(w * total, abs=1e-7)
+
+
+def test_frames_without_a_pose_are_errors_naming_the_frame():
+    traj = Trajectory(POSES, STAMPS)
+    with pytest.raises(ValueError, match=r"frame 7 .*t=1000.9.*outside"):
+        PoseMatcher(traj, "timestamp", max_gap=0.05)(7, None, 1000.9)
+    gappy = Trajectory(POSES[[0, 3]], STAMPS[[0, 3]])
+    with pytest.raises(ValueError, match="gap"):
+        PoseMatcher(gappy, "timestamp", max_gap=0.05)(1, None, 1000.1)
+    with pytest.raises(ValueError, match="5 poses for 6 frames"):
+        PoseMatcher(traj, "index", frames=6)
+    # By frame number: a missing frame does not shift the others.
+    m = PoseMatcher(Trajectory(POSES))
+    np.testing.assert_array_equal(m(2, "000003.png", None)[1], POSES[3])
+    with pytest.raises(ValueError, match=r"frame 4 \(000009.png\).*no pose 9"):
+        m(4, "000009.png", None)
+
+
+@pytest.mark.parametrize("bad, match", [
+    ("1 2 3\n", "cannot tell the pose format"),
+    ("0 0 0 0 0 0 0 2\n", "line 1"),
+    ("0 0 0 0 0 0 0 1\n0 0 0 0 0 0 0 1\n", "timestamps must increase"),
+    ("0 nan 0 0 0 0 0 1\n", "finite"),
+])
+def test_bad_pose_files_name_the_line(tmp_path, bad, match):
+    (tmp_path / "p.txt").write_text(bad)
+    with pytest.raises(ValueError, match=match):
+        read_poses(tmp_path / "p.txt")
+
+
+def test_binary_garbage_is_a_value_error(tmp_path):
+    (tmp_path / "p.txt").write_bytes(b"\xff\xfe\x00\x01")
+    with pytest.raises(ValueError, match="UTF-8"):
+        read_poses(tmp_path / "p.txt")
+
+
+def test_body_poses_compose_with_the_extrinsic():
+    body_from_cam = make_transform(random_rotation(RNG), [0.1, 0.2, 0.3])
+    traj = Trajectory(POSES, STAMPS).compose(body_from_cam)
+    np.testing.assert_allclose(traj.poses[2], POSES[2] @ body_from_cam)
+
+
+# ---- the road in any world frame ------------------------------------------------------------
+
+CAM = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 120.0, "fy": 120.0, "cx": 199.5, "cy": 149.5,
+                                "width": 400, "height": 300})
+ROAD_SCENE = synth.parse_scenario({"name": "road", "frames": 8, "ego": {"speed_kmh": 20},
+                                   "camera": {"position": [2, 0, 1.1], "pitch_deg": 12}})
+
+
+@pytest.fixture(scope="module")
+def road_frames():
+    return synth.render_frames(CAM, ROAD_SCENE)
+
+
+def test_the_road_is_found_in_the_first_camera_frame(road_frames):
+    new_from_scene = np.linalg.inv(road_frames[0].pose)
+    truth = fm.Road().transformed(new_from_scene)
+    det = fm.MotionDetector(CAM, "auto", fm.Params(frame_gap=1))
+    assert not det.road.known
+    for f in road_frames:
+        det.apply(f.image, new_from_scene @ f.pose)
+    assert det.road.known
+    angle = np.degrees(np.arccos(np.clip(det.road.up @ truth.up, -1, 1)))
+    assert angle < 3.0 and abs(det.road.offset - truth.offset) < 0.1
+
+
+def test_camera_height_rejects_an_implausible_plane():
+    est = GroundEstimator(camera_height=3.0)
+    pts = np.random.default_rng(0).uniform([-3, -3, 0], [3, 3, 0], (500, 3))
+    down = np.array([0.0, 0.0, -1.0])
+    assert est.fit(pts, np.array([0.0, 0.0, 1.0]), down) is None  # 1 m is not 3 m +- 25 %
+    road = GroundEstimator().fit(pts, np.array([0.0, 0.0, 1.0]), down)
+    assert road is not None and road.height(np.array([0, 0, 1.0])) == pytest.approx(1.0)
+
+
+def test_an_implausible_given_road_warns():
+    poses = np.repeat(np.eye(4)[None], 3, axis=0)
+    with pytest.warns(UserWarning, match="on or under the road"):
+        assert check_road(fm.Road(normal=(0, 0, 1), offset=0.5), poses)
+    assert check_road(fm.Road(normal=(0, 0, 1), offset=-1.2), poses) == []
