@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from importlib.metadata import entry_points
 from pathlib import Path
 
@@ -20,11 +20,9 @@ from tqdm import tqdm
 from . import calib
 from .detect import MotionDetector
 from .params import Params
-from .poses import read_tum
 from .road import Road
 
 REPO_DATA = Path(__file__).resolve().parents[1] / "data"
-IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"}
 
 
 class CliError(ValueError):
@@ -61,13 +59,19 @@ def cmd_calib(args: argparse.Namespace) -> int:
 
 # ---- detect ---------------------------------------------------------------------------------
 
-def _parse_road(text: str | None) -> Road:
-    if not text:
+def _parse_road(text: str | None) -> Road | str:
+    """``--road``: ``auto`` (estimate, the default), ``none``, ``z0`` (the plane z = 0) or
+    ``nx,ny,nz,offset``."""
+    if not text or text == "auto":
+        return "auto"
+    if text == "none":
+        return Road.unknown()
+    if text == "z0":
         return Road()
     try:
         v = [float(x) for x in text.split(",")]
     except ValueError:
-        raise CliError(f"--road: expected 'nx,ny,nz,offset' numbers, got {text!r}") from None
+        raise CliError(f"--road: expected auto, none, z0 or 'nx,ny,nz,offset', got {text!r}") from None
     if len(v) != 4:
         raise CliError(f"--road: expected 4 numbers 'nx,ny,nz,offset', got {len(v)}")
     try:
@@ -76,137 +80,149 @@ def _parse_road(text: str | None) -> Road:
         raise CliError(f"--road: {exc}") from None
 
 
-def _stamp_of(path: Path) -> float | None:
-    try:
-        v = float(path.stem)
-    except ValueError:
+def _poses_file(source: Path, given: str | None) -> Path | None:
+    """``--poses``, else ``poses.txt`` or a single ``poses*.csv`` in the input folder."""
+    if given:
+        return Path(given)
+    if not source.is_dir():
         return None
-    return v / 1e9 if len(path.stem.split(".")[0]) >= 16 else v  # nanoseconds (EuRoC, TUM VI)
+    folder = source
+    candidates = [folder / "poses.txt"] if (folder / "poses.txt").is_file() else sorted(
+        folder.glob("poses*.csv"))
+    return candidates[0] if len(candidates) == 1 else None
 
 
-def iter_frames(source: Path) -> Iterator[tuple[int, float | None, np.ndarray]]:
-    """``(index, timestamp or None, BGR frame)`` from a video, an image folder or a sequence."""
-    if source.is_dir():
-        folder = source / "frames" if (source / "frames").is_dir() else source
-        paths = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
-        if not paths:
-            raise CliError(f"{source}: no images")
-        for i, p in enumerate(paths):
-            img = cv2.imread(str(p), cv2.IMREAD_COLOR)
-            if img is None:
-                raise CliError(f"{p}: cannot be read as an image")
-            yield i, _stamp_of(p), img
-        return
-    if not source.exists():
-        raise CliError(f"{source}: no such file or folder")
-    cap = cv2.VideoCapture(str(source))
-    if not cap.isOpened():
-        raise CliError(f"{source}: cannot be opened as a video")
-    i = 0
-    try:
-        while True:
-            ok, img = cap.read()
-            if not ok:
-                break
-            yield i, cap.get(cv2.CAP_PROP_POS_MSEC) / 1000.0, img
-            i += 1
-    finally:
-        cap.release()
-
-
-class PoseLookup:
-    """Poses for frames, by frame index or by the nearest timestamp (within ``max_dt`` s)."""
-
-    def __init__(self, path: Path, match: str, max_dt: float) -> None:
-        self.stamps, self.poses = read_tum(path)
-        self.path, self.match, self.max_dt = path, match, max_dt
-
-    def __call__(self, index: int, stamp: float | None) -> tuple[float, np.ndarray]:
-        """``(pose timestamp, world_from_cam)`` for a frame."""
-        if self.match == "index":
-            if index >= len(self.poses):
-                raise CliError(f"{self.path}: {len(self.poses)} poses, but the input has more frames")
-            return float(self.stamps[index]), self.poses[index]
-        if stamp is None:
-            raise CliError("--match timestamp: frame names are not timestamps; use --match index")
-        j = int(np.argmin(np.abs(self.stamps - stamp)))
-        if abs(self.stamps[j] - stamp) > self.max_dt:
-            raise CliError(f"{self.path}: no pose within {self.max_dt} s of frame {index} (t={stamp})")
-        return float(self.stamps[j]), self.poses[j]
-
-
-def run_detect(source: Path, camera: calib.CameraModel, poses: PoseLookup, out: Path, *,
-               road: Road, params: Params, write_video: bool, progress: bool = True,
-               roi: np.ndarray | None = None) -> pd.DataFrame:
-    """Detect over a whole input; writes annotations, likelihood maps and regions.csv."""
+def run_detect(frames, camera: calib.CameraModel, matcher, out: Path, *,
+               road: Road | str, params: Params, write_video: bool, progress: bool = True,
+               roi: np.ndarray | None = None, camera_height: float | None = None,
+               fps: float | None = None) -> pd.DataFrame:
+    """Detect over a whole input into ``out`` (a fresh folder): an annotated frame for every
+    input frame (video at the input's rate, or PNGs named like the frames), likelihood maps and
+    masks (npz), ``regions.csv`` and ``regions.jsonl`` with each region's frame, time, bearing
+    and ground distance, and ``poses.txt`` (the poses used, TUM)."""
     from .draw import annotate
+    from .outputs import region_records
+    from .poses import write_tum
 
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "likelihood").mkdir(exist_ok=True)
+    (out / "likelihood").mkdir()
     if not write_video:
-        (out / "annotated").mkdir(exist_ok=True)
-    detector = MotionDetector(camera, road, params, roi=roi)
+        (out / "annotated").mkdir()
+    detector = MotionDetector(camera, road, params, roi=roi, camera_height=camera_height)
     writer = None
-    rows = []
-    frames = iter_frames(source)
-    for index, stamp, frame in tqdm(frames, desc="detect", disable=not progress, leave=False):
-        stamp, pose = poses(index, stamp)
+    rows, stamps, used = [], [], []
+    total = len(frames) or None
+    for frame in tqdm(frames, desc="detect", total=total, disable=not progress, leave=False):
+        name = Path(frame.name).stem if frame.name else f"{frame.index:06d}"
         try:
-            result = detector.apply(frame, pose)
+            stamp, pose = matcher(frame.index, frame.name, frame.stamp)
+            result = detector.apply(frame.image, pose)
         except ValueError as exc:
-            raise CliError(f"frame {index}: {exc}") from None
-        if result is None:
-            continue
-        name = f"{index:06d}"
-        np.savez_compressed(out / "likelihood" / f"{name}.npz", likelihood=result.likelihood,
-                            mask=result.mask)
-        shown = annotate(frame, result)
+            raise CliError(f"frame {frame.index} ({name}): {exc}") from None
+        stamp = frame.stamp if frame.stamp is not None else stamp
+        stamps.append(frame.index if stamp is None else stamp)
+        used.append(pose)
+        if result is None:  # the frame gap is filling: nothing detected yet
+            shown = frame.image if frame.image.ndim == 3 else cv2.cvtColor(frame.image,
+                                                                           cv2.COLOR_GRAY2BGR)
+            mask = np.zeros(frame.image.shape[:2], np.uint8)
+            likelihood = np.zeros(frame.image.shape[:2], np.float32)
+        else:
+            shown, mask, likelihood = annotate(frame.image, result), result.mask, result.likelihood
+            for rec in region_records(result.regions, camera, pose, detector.road):
+                rows.append({"frame": frame.index, "name": frame.name, "timestamp": stamp, **rec})
+        np.savez_compressed(out / "likelihood" / f"{name}.npz", likelihood=likelihood, mask=mask)
         if write_video:
             if writer is None:
                 writer = cv2.VideoWriter(str(out / "annotated.mp4"),
-                                         cv2.VideoWriter_fourcc(*"mp4v"), 15.0,
+                                         cv2.VideoWriter_fourcc(*"mp4v"), fps or 15.0,
                                          (shown.shape[1], shown.shape[0]))
             writer.write(shown)
         else:
             cv2.imwrite(str(out / "annotated" / f"{name}.png"), shown)
-        for r in result.regions:
-            rows.append({"frame": index, "timestamp": stamp, "label": r.label, "x": r.bbox[0],
-                         "y": r.bbox[1], "w": r.bbox[2], "h": r.bbox[3], "area": r.area,
-                         "mean_likelihood": r.mean_likelihood, "u": r.centroid[0],
-                         "v": r.centroid[1]})
     if writer is not None:
         writer.release()
-    table = pd.DataFrame(rows, columns=["frame", "timestamp", "label", "x", "y", "w", "h", "area",
-                                        "mean_likelihood", "u", "v"])
+    columns = ["frame", "name", "timestamp", "label", "x", "y", "w", "h", "area",
+               "mean_likelihood", "u", "v", "azimuth_deg", "elevation_deg", "ground_distance_m"]
+    table = pd.DataFrame(rows, columns=columns)
     table.to_csv(out / "regions.csv", index=False)
+    table.to_json(out / "regions.jsonl", orient="records", lines=True)
+    if used:
+        write_tum(out / "poses.txt", stamps, used)
+    road_note = (f"road: normal {np.round(detector.road.up, 4).tolist()}, offset "
+                 f"{detector.road.offset:.3f} m" if detector.road.known else "road: none found")
+    (out / "road.txt").write_text(road_note + "\n")
     return table
 
 
 def cmd_detect(args: argparse.Namespace) -> int:
+    from .inputs import open_source
+    from .outputs import atomic_folder
+    from .poses import PoseMatcher, read_poses
+
     source = Path(args.input)
-    if not source.exists():
-        raise CliError(f"{source}: no such file or folder")
+    frames = open_source(source, image_topic=args.image_topic)
+    is_bag = hasattr(frames, "trajectory")
     is_sequence = (source / "frames").is_dir()
-    calib_path = Path(args.calib) if args.calib else (source / "calib.yaml" if is_sequence else None)
-    poses_path = Path(args.poses) if args.poses else (source / "poses.txt" if is_sequence else None)
-    if calib_path is None or poses_path is None:
-        raise CliError("--calib and --poses are required unless INPUT is a sequence folder")
-    camera = calib.load(calib_path, camera=args.camera)
-    params = Params.load(args.params) if args.params else Params()
-    if args.flow:
-        params = params.replace(flow=args.flow)
-    lookup = PoseLookup(poses_path, args.match, args.max_dt)
+    if args.calib:
+        rig = calib.load_rig(args.calib)
+        camera, extrinsic = rig[args.camera], rig.extrinsic(args.camera)
+    elif is_bag:
+        camera, extrinsic = frames.camera(args.info_topic), None
+    elif is_sequence:
+        camera, extrinsic = calib.load(source / "calib.yaml"), None
+    else:
+        raise CliError("--calib is required unless INPUT is a sequence folder or a bag with "
+                       "CameraInfo")
+    if is_bag and (args.pose_topic or args.pose_frame):
+        times = [f.stamp for f in frames]
+        trajectory = frames.trajectory(pose_topic=args.pose_topic, pose_frame=args.pose_frame,
+                                       world_frame=args.world_frame, times=np.array(times))
+    else:
+        poses_path = _poses_file(source, args.poses)
+        if poses_path is None:
+            raise CliError("--poses: no pose file given or found in the input (poses.txt, "
+                           "poses*.csv)")
+        trajectory = read_poses(poses_path)
+    if args.poses_of == "rig":
+        if extrinsic is None:
+            raise CliError("--poses-of rig: the calibration file has no extrinsic for camera "
+                           f"{args.camera!r}")
+        trajectory = trajectory.compose(extrinsic)
+    matcher = PoseMatcher(trajectory, args.match, max_gap=args.max_dt,
+                          frames=len(frames) or None)
+    params = _detect_params(args, camera)
     roi_path = Path(args.roi) if args.roi else (source / "roi.png" if is_sequence else None)
     roi = None
     if roi_path is not None and (args.roi or roi_path.exists()):
         roi = cv2.imread(str(roi_path), cv2.IMREAD_GRAYSCALE)
         if roi is None:
             raise CliError(f"{roi_path}: cannot be read as an image")
-    write_video = not source.is_dir()
-    table = run_detect(source, camera, lookup, Path(args.out), road=_parse_road(args.road),
-                       params=params, write_video=write_video, progress=not args.quiet, roi=roi)
-    print(f"{len(table)} regions in {table['frame'].nunique()} frames; written to {args.out}")
+    road = _parse_road(args.road)
+    if isinstance(road, Road):
+        from .ground import check_road
+
+        for note in check_road(road, trajectory.poses, "--road"):
+            print(f"fisheyemotion detect: warning: {note}", file=sys.stderr)
+    write_video = not source.is_dir() or is_bag
+    with atomic_folder(Path(args.out), overwrite=args.overwrite) as tmp:
+        table = run_detect(frames, camera, matcher, tmp, road=road, params=params,
+                           write_video=write_video, progress=not args.quiet, roi=roi,
+                           camera_height=args.camera_height, fps=frames.fps)
+        road_note = (tmp / "road.txt").read_text().strip()
+    print(f"{len(table)} regions in {table['frame'].nunique()} frames; {road_note}; "
+          f"written to {args.out}")
     return 0
+
+
+def _detect_params(args: argparse.Namespace, camera: calib.CameraModel) -> Params:
+    """``--params FILE`` or ``paper``; the defaults scaled to the camera's resolution."""
+    if args.params == "paper":
+        params = Params.paper().for_camera(camera)
+    elif args.params:
+        params = Params.load(args.params)
+    else:
+        params = Params().for_camera(camera)
+    return params.replace(flow=args.flow) if args.flow else params
 
 
 # ---- synth ----------------------------------------------------------------------------------
@@ -238,20 +254,44 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="fisheyemotion", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
 
-    p = sub.add_parser("detect", help="detect moving objects in a video, image folder or sequence")
-    p.add_argument("input", help="video file, folder of frames, or sequence folder")
-    p.add_argument("--calib", help="calibration file (default: INPUT/calib.yaml)")
-    p.add_argument("--camera", type=_camera_arg, default=0, help="camera index or name in --calib")
-    p.add_argument("--poses", help="TUM pose file, world_from_cam (default: INPUT/poses.txt)")
-    p.add_argument("--match", choices=("index", "timestamp"), default="index",
-                   help="pair frames and poses by index (default) or by timestamp")
-    p.add_argument("--max-dt", type=float, default=0.02, help="timestamp tolerance, seconds")
-    p.add_argument("--road", help="road plane 'nx,ny,nz,offset' in the world frame (default 0,0,1,0)")
-    p.add_argument("--params", help="YAML/JSON file of Params")
+    p = sub.add_parser("detect", help="detect moving objects in a video, image folder, "
+                       "sequence folder or ROS bag")
+    p.add_argument("input", help="video file, folder of frames, sequence folder, ROS 1 .bag or "
+                   "ROS 2 bag folder")
+    p.add_argument("--calib", help="calibration file (default: INPUT/calib.yaml of a sequence, "
+                   "or the bag's CameraInfo)")
+    p.add_argument("--camera", type=_camera_arg, default=0,
+                   help="camera index or name in --calib (default: %(default)s)")
+    p.add_argument("--poses", help="pose file: TUM, KITTI, EuRoC CSV, Aria CSV, MPS CSV, .npy or "
+                   ".npz (default: poses.txt or poses*.csv in INPUT)")
+    p.add_argument("--poses-of", choices=("camera", "rig"), default="camera",
+                   help="the poses are of the camera, or of the calibration's reference frame "
+                   "(IMU, device, vehicle), composed with the camera's extrinsic "
+                   "(default: %(default)s)")
+    p.add_argument("--match", choices=("auto", "timestamp", "name", "index"), default="auto",
+                   help="pair frames with poses by time (interpolated), frame name, or index "
+                   "(default: %(default)s: name when the poses are named, else time when both "
+                   "have times, else the frame's number)")
+    p.add_argument("--max-dt", type=float, default=0.05,
+                   help="seconds a frame may be from the poses around it (default: %(default)s)")
+    p.add_argument("--road", default="auto",
+                   help="auto (estimate it), none, z0, or 'nx,ny,nz,offset' in the world frame "
+                   "(default: %(default)s)")
+    p.add_argument("--camera-height", type=float,
+                   help="metres above the road, when known (checks the estimated road)")
+    p.add_argument("--params", help="YAML/JSON file of Params, or 'paper' (default: the "
+                   "defaults, grid and areas scaled to the camera's resolution)")
     p.add_argument("--roi", help="mask image of pixels to use (default: INPUT/roi.png if present)")
     p.add_argument("--flow", choices=("farneback", "dis"), help="override the flow method")
-    p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--image-topic", help="bag: the image topic (default: the only one)")
+    p.add_argument("--info-topic", help="bag: the CameraInfo topic (default: the image topic's "
+                   "camera_info)")
+    p.add_argument("--pose-topic", help="bag: a PoseStamped or Odometry topic")
+    p.add_argument("--pose-frame", help="bag: the tf frame whose poses to use (with /tf)")
+    p.add_argument("--world-frame", help="bag: the tf frame the poses are in (default: the root)")
+    p.add_argument("--out", required=True, help="output folder (written whole at the end)")
+    p.add_argument("--overwrite", action="store_true", help="replace a non-empty --out")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_detect)
 
     p = sub.add_parser("synth", help="render a scenario to a sequence folder")

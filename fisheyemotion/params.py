@@ -9,10 +9,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 FLOW_METHODS = ("farneback", "dis")
 DIS_PRESETS = ("ultrafast", "fast", "medium")
 LAMBDA_P_MODES = ("constant", "adaptive")
 FLOW_PRIORS = ("none", "ego", "warp")
+
+#: Radians per pixel at the image centre of the cameras the defaults were chosen on (200 px/rad).
+REFERENCE_PIXEL_ANGLE = 1 / 200
 
 #: Farneback settings; OpenCV's sample values, the paper does not state its own.
 FARNEBACK_DEFAULTS = {"pyr_scale": 0.5, "levels": 3, "winsize": 15, "iterations": 3,
@@ -228,6 +233,24 @@ class Params:
                       "frame_gap": 1, "min_texture": 0.0,
                       "visibility_check": False, "threshold": 0.005, "temporal_decay": 0.0,
                       **changes})
+
+    def for_camera(self, camera, **changes: Any) -> Params:
+        """These parameters with the pixel-sized ones (``grid``, ``min_area``) scaled to
+        ``camera``'s angular resolution at its centre, so that cameras of any resolution see
+        the same cells in degrees: the defaults were chosen at ``REFERENCE_PIXEL_ANGLE``
+        (200 px per radian, a 190-degree fisheye 640 px wide). ``grid`` is
+        ``round(5 s)`` (at least 3) and ``min_area`` ``100 s^2`` pixels, ``s`` the ratio of the
+        reference angle to the camera's; ``changes`` are applied after scaling."""
+        from .significance import pixel_angle
+
+        cx, cy = (camera.width - 1) / 2, (camera.height - 1) / 2
+        angle = float(pixel_angle(camera, np.array([[cx, cy]]))[0])
+        if not math.isfinite(angle) or angle <= 0:
+            raise ValueError(f"camera: no ray at the image centre ({cx}, {cy}) to scale from")
+        scale = REFERENCE_PIXEL_ANGLE / angle
+        grid = max(3, int(round(self.grid * scale)))
+        area = int(round(self.min_area * (grid / self.grid) ** 2))
+        return self.replace(**{"grid": grid, "min_area": area, **changes})
 
     def replace(self, **changes: Any) -> Params:
         """A copy with some fields changed (validated again)."""

@@ -176,18 +176,27 @@ def test_drawing_returns_bgr_images_and_the_fig6_layout(pair):
 def test_detect_cli_on_a_sequence_folder(tmp_path, pair):
     seq = synth.write_sequence(tmp_path / "seq", CAM, PAIR, frames=3, progress=False)
     out = tmp_path / "out"
-    assert main(["detect", str(seq), "--out", str(out), "--quiet"]) == 0
-    assert len(list((out / "annotated").glob("*.png"))) == 0  # 3 frames, default gap 3
-    (tmp_path / "p.yaml").write_text("frame_gap: 1\nflow: dis\n")
-    assert main(["detect", str(seq), "--out", str(out), "--quiet", "--params",
-                 str(tmp_path / "p.yaml")]) == 0
-    assert len(list((out / "annotated").glob("*.png"))) == 2
+    assert main(["detect", str(seq), "--out", str(out), "--quiet", "--road", "z0"]) == 0
+    # One output per input frame, named like it; empty masks while the frame gap (3) fills.
+    assert sorted(p.name for p in (out / "annotated").glob("*.png")) == [
+        "000000.png", "000001.png", "000002.png"]
     with np.load(out / "likelihood" / "000002.npz") as z:
-        assert z["likelihood"].shape == (480, 640)
+        assert not z["mask"].any()
+    (tmp_path / "p.yaml").write_text("frame_gap: 1\nflow: dis\n")
+    args = ["detect", str(seq), "--out", str(out), "--quiet", "--road", "z0", "--params",
+            str(tmp_path / "p.yaml")]
+    assert main(args) == 2  # --out is not empty
+    assert main([*args, "--overwrite"]) == 0
+    assert len(list((out / "annotated").glob("*.png"))) == 3
+    with np.load(out / "likelihood" / "000002.npz") as z:
+        assert z["likelihood"].shape == (480, 640) and z["mask"].any()
     import pandas as pd
 
     regions = pd.read_csv(out / "regions.csv")
     assert (regions.frame >= 1).all() and len(regions) >= 1
+    assert {"timestamp", "azimuth_deg", "elevation_deg", "ground_distance_m"} <= set(regions)
+    assert regions.timestamp.notna().all() and regions.ground_distance_m.notna().any()
+    assert len(pd.read_json(out / "regions.jsonl", lines=True)) == len(regions)
 
 
 def test_detect_cli_on_a_video_with_explicit_files(tmp_path, pair):
@@ -204,7 +213,11 @@ def test_detect_cli_on_a_video_with_explicit_files(tmp_path, pair):
                  str(tmp_path / "poses.txt"), "--out", str(out), "--quiet", "--params",
                  str(tmp_path / "p.json")])
     assert code == 0 and (out / "annotated.mp4").stat().st_size > 0
-    assert len(list((out / "likelihood").glob("*.npz"))) == 2
+    assert len(list((out / "likelihood").glob("*.npz"))) == 3
+    cap = cv2.VideoCapture(str(out / "annotated.mp4"))
+    assert cap.get(cv2.CAP_PROP_FPS) == pytest.approx(15) and cap.get(
+        cv2.CAP_PROP_FRAME_COUNT) == 3  # the input's rate and frame count
+    cap.release()
 
 
 def test_detect_cli_errors_are_one_line_and_exit_2(tmp_path, capsys):
