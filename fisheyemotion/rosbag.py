@@ -123,8 +123,10 @@ class BagSource(FrameSource):
             for conn, _, raw in reader.messages(connections=conns):
                 msg = reader.deserialize(raw, conn.msgtype)
                 break
-        k = np.asarray(msg.k, dtype=np.float64).reshape(3, 3)
-        d = np.asarray(msg.d, dtype=np.float64)
+        # ROS 2 names the matrices k, d; ROS 1 K, D.
+        k = np.asarray(getattr(msg, "k", None) if hasattr(msg, "k") else msg.K,
+                       dtype=np.float64).reshape(3, 3)
+        d = np.asarray(getattr(msg, "d", None) if hasattr(msg, "d") else msg.D, dtype=np.float64)
         field = f"{self.path}: {topic}"
         model = msg.distortion_model
         size = {"width": int(msg.width), "height": int(msg.height)}
