@@ -43,12 +43,18 @@ def _flows(text: str) -> list[str]:
 
 def run_eval(paths: list[Path], params: Params, flows: list[str], out: Path, *,
              workers: int | None, scheduler: str | None, progress: bool,
-             commands: list[str] | None = None, title: str = "fisheyemotion evaluation"):
+             commands: list[str] | None = None, title: str = "fisheyemotion evaluation",
+             real_data: Path | None = None):
     results = []
     for flow in flows:
         results += evaluate(paths, params.replace(flow=flow), workers=workers,
                             scheduler=scheduler, progress=progress)
-    report = write_report(results, out, params, commands=commands, title=title)
+    real = None
+    if real_data is not None and (real_data / "real").is_dir():
+        from .real import run_real
+
+        real = run_real(real_data)
+    report = write_report(results, out, params, commands=commands, title=title, real=real)
     return results, report
 
 
@@ -126,7 +132,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
           f"{', '.join(STREET_CAMERAS.values())}")
     results, report = run_eval(
         seqs, Params(), _flows(args.flow), out / "report", workers=args.workers, scheduler=None,
-        progress=not args.quiet, title="fisheyemotion demo: bundled scenarios",
+        progress=not args.quiet, title="fisheyemotion demo: bundled scenarios", real_data=data,
         commands=[f"fisheyemotion demo --frames {args.frames} --flow {args.flow}"])
     _print_table2(results)
     print(f"Report: {report.resolve()}")

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
+from fisheyemotion.calib.transforms import matrix_to_quat
 from rosbags.typesys import Stores, get_typestore
 
 import fisheyemotion as fm
 from fisheyemotion import synth
-from fisheyemotion.calib.transforms import matrix_to_quat
 from fisheyemotion.cli import main
 
 from .cameras import TUMVI_KB
