@@ -46,6 +46,12 @@ from . import _polynomial_kernel
 from ._arrays import as_points, check_real, check_size
 
 _GRID_SAMPLES = 8192
+
+#: Pixels: no camera has a longer focal length (1e300 would make every product overflow).
+MAX_FOCAL = 1e7
+#: Normalised radius beyond which a projection is not valid (a ray at the edge of a model's
+#: domain where r(theta) -> infinity, e.g. 90 degrees for a pinhole or a unified xi = 0).
+MAX_RADIUS = 1e6
 _TABLE_SAMPLES = 4097
 
 
@@ -118,8 +124,9 @@ class CameraModel:
                 object.__setattr__(self, f.name, check_real(f.name, value, owner=owner))
         fx, fy, _, _ = self._affine()
         for label, value in (("fx", fx), ("fy", fy)):
-            if value <= 0:
-                raise ValueError(f"{owner}.{label}: expected a positive focal length, got {value}")
+            if not 0 < value <= MAX_FOCAL:
+                raise ValueError(f"{owner}.{label}: expected a focal length in (0, {MAX_FOCAL:g}] "
+                                 f"pixels, got {value}")
         self._check_model()
 
     @property
@@ -193,7 +200,7 @@ class CameraModel:
             r = self._radius(theta)
             scale = np.where(rho > 0, r / np.where(rho > 0, rho, 1.0), 0.0)
             pixels = np.stack([fx * scale * x + cx, fy * scale * y + cy], axis=-1)
-        valid &= np.isfinite(pixels).all(axis=-1)
+        valid &= np.isfinite(pixels).all(axis=-1) & (r < MAX_RADIUS)
         pixels[~valid] = np.nan
         return pixels, valid
 

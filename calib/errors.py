@@ -11,8 +11,15 @@ class CalibrationError(ValueError):
     """
 
     def __init__(self, field: str, expected: str, *, source: str | None = None) -> None:
+        # Bounded: the values quoted come from files that may be hostile (a YAML 'billion
+        # laughs' expands to gigabytes).
+        field, expected = _cut(str(field), 200), _cut(str(expected), 400)
         self.source = source
         self.field = field
         self.expected = expected
         where = f"{source}: " if source else ""
         super().__init__(f"{where}{field}: {expected}")
+
+
+def _cut(text: str, limit: int) -> str:
+    return text if len(text) <= limit else text[:limit] + f"... ({len(text) - limit} more characters)"

@@ -76,19 +76,26 @@ def invert_transform(transform: ArrayLike) -> NDArray[np.float64]:
     return make_transform(r.T, -r.T @ t[:3, 3])
 
 
+#: Metres: larger translations are not poses (products of such numbers overflow).
+MAX_TRANSLATION = 1e9
+
+
 def check_rigid(transform: ArrayLike, name: str) -> NDArray[np.float64]:
     """Return ``transform`` as a float64 4x4 rigid transform or raise ValueError naming ``name``.
 
     Rigid: finite, last row ``(0, 0, 0, 1)``, ``R^T R = I`` within ``RIGID_TOL`` and ``det R > 0``.
     """
     try:
-        t = np.asarray(transform, dtype=np.float64)
-    except (TypeError, ValueError):
+        t = np.array(transform, dtype=np.float64)  # a copy: callers may reuse their array
+    except (TypeError, ValueError, OverflowError):
         raise ValueError(f"{name}: expected a 4x4 rigid transform of numbers") from None
     if t.shape != (4, 4):
         raise ValueError(f"{name}: expected a 4x4 rigid transform, got shape {t.shape}")
     if not np.isfinite(t).all():
         raise ValueError(f"{name}: expected finite values in the 4x4 transform")
+    if np.abs(t[:3, 3]).max() > MAX_TRANSLATION:
+        raise ValueError(f"{name}: translation {t[:3, 3].tolist()} is beyond "
+                         f"{MAX_TRANSLATION:g} m (not a pose in metres)")
     if np.abs(t[3] - _LAST_ROW).max() > RIGID_TOL:
         raise ValueError(f"{name}: expected last row (0, 0, 0, 1), got {t[3].tolist()}")
     r = t[:3, :3]

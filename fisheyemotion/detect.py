@@ -9,6 +9,7 @@
 from __future__ import annotations
 
 import json
+import threading
 from collections import OrderedDict, deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -511,8 +512,16 @@ class MotionDetector:
         return Detection(likelihood, mask, maps, flow, grid, regions, res.static_camera)
 
 
-_DETECTORS: OrderedDict[tuple, MotionDetector] = OrderedDict()
+#: ``detect()``'s detectors (their grid rays and OpenCV flow objects) are cached per thread:
+#: an OpenCV DIS object must not be used from two threads at once.
+_CACHE = threading.local()
 _CACHE_SIZE = 4
+
+
+def _detectors() -> OrderedDict[tuple, MotionDetector]:
+    if not hasattr(_CACHE, "detectors"):
+        _CACHE.detectors = OrderedDict()
+    return _CACHE.detectors
 
 
 def detect(prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray, pose1: NDArray, *,
@@ -540,8 +549,9 @@ def detect(prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray, pos
 
     Notes
     -----
-    The grid rays of a camera are computed once and kept (for the last few cameras used), as a
-    :class:`MotionDetector` keeps them.
+    The grid rays of a camera are computed once and kept (for the last few cameras used, in
+    each thread), as a :class:`MotionDetector` keeps them. ``detect`` may be called from several
+    threads at once; a :class:`MotionDetector` belongs to one thread at a time.
     """
     road = Road() if road is None else road
     params = Params() if params is None else params
@@ -550,10 +560,11 @@ def detect(prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray, pos
     roi_key = None if roi is None else hash(np.asarray(roi).tobytes())
     key = (camera, road, json.dumps(params.to_dict(), sort_keys=True), roi_key)
     try:
-        detector = _DETECTORS.pop(key)
+        detector = _detectors().pop(key)
     except (KeyError, TypeError):
         detector = MotionDetector(camera, road, params, roi=roi)
-    _DETECTORS[key] = detector
-    while len(_DETECTORS) > _CACHE_SIZE:
-        _DETECTORS.popitem(last=False)
+    cache = _detectors()
+    cache[key] = detector
+    while len(cache) > _CACHE_SIZE:
+        cache.popitem(last=False)
     return detector.detect(prev, curr, pose0, pose1)

@@ -182,10 +182,14 @@ class Params:
     saturation: float = 0.02
 
     def __post_init__(self) -> None:
-        w = tuple(self.weights)
+        try:
+            w = tuple(self.weights)
+        except TypeError:
+            raise ValueError(f"weights: expected 4 non-negative numbers with a positive sum, "
+                             f"got {_short(self.weights)}") from None
         if len(w) != 4 or not all(_finite(v) and v >= 0 for v in w) or sum(w) <= 0:
             raise ValueError("weights: expected 4 non-negative numbers with a positive sum, "
-                             f"got {self.weights!r}")
+                             f"got {_short(self.weights)}")
         object.__setattr__(self, "weights", tuple(float(v) for v in w))
         for name in ("lambda_h", "lambda_p", "lambda_p_ratio", "min_baseline", "epipole_margin",
                      "threshold", "saturation", "fb_tolerance", "fb_relative", "min_texture",
@@ -193,33 +197,35 @@ class Params:
                      "significance", "flow_sigma"):
             v = getattr(self, name)
             if not _finite(v) or v < 0:
-                raise ValueError(f"{name}: expected a finite number >= 0, got {v!r}")
+                raise ValueError(f"{name}: expected a finite number >= 0, got {_short(v)}")
         if not _finite(self.horizon_margin) or not -1 < self.horizon_margin < 1:
-            raise ValueError(f"horizon_margin: expected a number in (-1, 1), got {self.horizon_margin!r}")
+            raise ValueError(f"horizon_margin: expected a number in (-1, 1), got {_short(self.horizon_margin)}")
         if not _finite(self.prior_distance) or self.prior_distance <= 0:
-            raise ValueError(f"prior_distance: expected > 0 metres, got {self.prior_distance!r}")
+            raise ValueError(f"prior_distance: expected > 0 metres, got {_short(self.prior_distance)}")
         if self.saturation <= 0:
             raise ValueError(f"saturation: expected > 0, got {self.saturation!r}")
         for name, options in (("lambda_p_mode", LAMBDA_P_MODES), ("flow", FLOW_METHODS),
                               ("dis_preset", DIS_PRESETS), ("flow_prior", FLOW_PRIORS)):
             if getattr(self, name) not in options:
-                raise ValueError(f"{name}: expected one of {', '.join(options)}, got {getattr(self, name)!r}")
+                raise ValueError(f"{name}: expected one of {', '.join(options)}, got {_short(getattr(self, name))}")
         if not _finite(self.temporal_decay) or not 0 <= self.temporal_decay < 1:
-            raise ValueError(f"temporal_decay: expected a number in [0, 1), got {self.temporal_decay!r}")
+            raise ValueError(f"temporal_decay: expected a number in [0, 1), got {_short(self.temporal_decay)}")
         for name, low in (("grid", 1), ("min_area", 0), ("frame_gap", 1), ("persistence", 1),
                           ("scene_memory", 1)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
-                raise ValueError(f"{name}: expected an integer >= {low}, got {v!r}")
+                raise ValueError(f"{name}: expected an integer >= {low}, got {_short(v)}")
         for name in ("depth_both_views", "fb_check", "visibility_check", "scene_prior",
                      "ground_contact"):
             if not isinstance(getattr(self, name), bool):
-                raise ValueError(f"{name}: expected a bool, got {getattr(self, name)!r}")
+                raise ValueError(f"{name}: expected a bool, got {_short(getattr(self, name))}")
         fb = dict(self.farneback) if isinstance(self.farneback, dict) else None
         if fb is None or set(fb) - set(FARNEBACK_DEFAULTS):
             raise ValueError(f"farneback: expected a dict with keys among "
-                             f"{sorted(FARNEBACK_DEFAULTS)}, got {self.farneback!r}")
-        object.__setattr__(self, "farneback", {**FARNEBACK_DEFAULTS, **fb})
+                             f"{sorted(FARNEBACK_DEFAULTS)}, got {_short(self.farneback)}")
+        fb = {**FARNEBACK_DEFAULTS, **fb}
+        _check_farneback(fb)
+        object.__setattr__(self, "farneback", fb)
 
     @classmethod
     def paper(cls, **changes: Any) -> Params:
@@ -266,10 +272,13 @@ class Params:
         """Build from a mapping; unknown keys are an error naming them."""
         if not isinstance(values, dict):
             raise ValueError(f"params: expected a mapping, got {type(values).__name__}")
+        if any(not isinstance(k, str) for k in values):
+            raise ValueError(f"params: expected text keys, got {_short(list(values))}")
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(values) - known)
         if unknown:
-            raise ValueError(f"params: unknown key(s) {unknown}; expected among {sorted(known)}")
+            raise ValueError(f"params: unknown key(s) {_short(unknown)}; expected among "
+                             f"{sorted(known)}")
         values = dict(values)
         if "weights" in values and isinstance(values["weights"], list):
             values["weights"] = tuple(values["weights"])
@@ -280,15 +289,52 @@ class Params:
         """Read a YAML or JSON file of parameters."""
         import yaml
 
-        text = Path(path).read_text(encoding="utf-8")
+        try:
+            text = Path(path).read_text(encoding="utf-8")
+        except FileNotFoundError:
+            raise ValueError(f"{path}: no such parameter file") from None
+        except UnicodeDecodeError:
+            raise ValueError(f"{path}: not a UTF-8 text file of parameters") from None
+        except OSError as exc:
+            raise ValueError(f"{path}: cannot be read: {exc}") from None
         try:
             values = json.loads(text) if str(path).endswith(".json") else yaml.safe_load(text)
-        except (ValueError, yaml.YAMLError) as exc:
-            raise ValueError(f"{path}: cannot parse parameters: {exc}") from None
+        except (ValueError, yaml.YAMLError, RecursionError) as exc:
+            raise ValueError(f"{path}: cannot parse parameters: {_short(str(exc), 300)}") from None
         try:
             return cls.from_dict(values or {})
         except ValueError as exc:
             raise ValueError(f"{path}: {exc}") from None
+
+
+def _check_farneback(fb: dict) -> None:
+    """OpenCV's own ranges, checked before cv2 sees them (it aborts the process on some)."""
+    def bad(key: str, expected: str) -> ValueError:
+        return ValueError(f"farneback.{key}: expected {expected}, got {_short(fb[key])}")
+
+    if not _finite(fb["pyr_scale"]) or not 0 < fb["pyr_scale"] < 1:
+        raise bad("pyr_scale", "a number in (0, 1)")
+    for key, low, high in (("levels", 0, 10), ("winsize", 3, 255), ("iterations", 1, 100)):
+        v = fb[key]
+        if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= high:
+            raise bad(key, f"an integer in [{low}, {high}]")
+    if fb["poly_n"] not in (5, 7) or isinstance(fb["poly_n"], bool):
+        raise bad("poly_n", "5 or 7 (OpenCV's supported neighbourhoods)")
+    if not _finite(fb["poly_sigma"]) or not 0 < fb["poly_sigma"] <= 10:
+        raise bad("poly_sigma", "a number in (0, 10]")
+
+
+def _short(value: Any, limit: int = 120) -> str:
+    """``repr(value)`` cut to ``limit`` characters: error messages stay small whatever the
+    input (a YAML 'billion laughs' expands to gigabytes)."""
+    import reprlib
+
+    r = reprlib.Repr()
+    r.maxstring = r.maxother = limit
+    r.maxlist = r.maxdict = r.maxtuple = 8
+    r.maxlevel = 3
+    text = r.repr(value)
+    return text if len(text) <= limit else text[:limit] + "..."
 
 
 def _finite(v: Any) -> bool:

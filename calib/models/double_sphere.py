@@ -44,10 +44,14 @@ class DoubleSphere(CameraModel):
     height: int
 
     def _check_model(self) -> None:
-        if not -1.0 <= self.xi <= 1.0:
-            raise ValueError(f"DoubleSphere.xi: expected a value in [-1, 1], got {self.xi}")
+        if not -1.0 < self.xi <= 1.0:
+            raise ValueError(f"DoubleSphere.xi: expected a value in (-1, 1] (at -1 the two "
+                             f"spheres coincide and every ray maps to the centre), got {self.xi}")
         if not 0.0 <= self.alpha <= 1.0:
             raise ValueError(f"DoubleSphere.alpha: expected a value in [0, 1], got {self.alpha}")
+        if self.alpha == 0.0 and self.xi < 0.0:
+            raise ValueError(f"DoubleSphere.alpha: 0 with xi < 0 ({self.xi}) is no camera (a "
+                             "unified model with negative xi); expected alpha > 0")
 
     def _d2(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.sqrt(1.0 + 2.0 * self.xi * np.cos(theta) + self.xi**2)

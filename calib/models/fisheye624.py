@@ -81,6 +81,10 @@ class Fisheye624(CameraModel):
         if self.valid_radius < 0:
             raise ValueError(f"Fisheye624.valid_radius: expected pixels >= 0 (0: no limit), "
                              f"got {self.valid_radius}")
+        for name in ("k0", "k1", "k2", "k3", "k4", "k5"):
+            if abs(getattr(self, name)) > 1e3:
+                raise ValueError(f"Fisheye624.{name}: expected |{name}| <= 1000, got "
+                                 f"{getattr(self, name)}")
         for name in ("p0", "p1", "s0", "s1", "s2", "s3"):
             if abs(getattr(self, name)) > 0.1:
                 raise ValueError(f"Fisheye624.{name}: expected |{name}| <= 0.1 (a small "

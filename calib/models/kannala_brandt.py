@@ -8,6 +8,9 @@ from typing import ClassVar
 from ..base import CameraModel
 from ..registry import register
 
+#: Largest |k_i| accepted: real fisheye calibrations stay below 3; 1e300 would overflow.
+MAX_COEFFICIENT = 1e3
+
 
 @register
 @dataclass(frozen=True, kw_only=True)
@@ -41,6 +44,12 @@ class KannalaBrandt(CameraModel):
     k4: float = 0.0
     width: int
     height: int
+
+    def _check_model(self) -> None:
+        for name in ("k1", "k2", "k3", "k4"):
+            if abs(getattr(self, name)) > MAX_COEFFICIENT:
+                raise ValueError(f"KannalaBrandt.{name}: expected |{name}| <= {MAX_COEFFICIENT} "
+                                 f"(real lenses: below 3), got {getattr(self, name)}")
 
     def _radius_coefficients(self) -> tuple[float, ...]:
         return (0.0, 1.0, 0.0, self.k1, 0.0, self.k2, 0.0, self.k3, 0.0, self.k4)

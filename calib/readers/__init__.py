@@ -5,8 +5,9 @@
 =================  ======================================================================
 format             detected by
 =================  ======================================================================
-``opencv``         ``.xml``, or text starting with ``%YAML`` (OpenCV 4 ``%YAML:1.0``, OpenCV 5
-                   ``%YAML 1.2``); read with ``cv2.FileStorage``
+``opencv``         ``.xml``, text starting with ``%YAML`` (OpenCV 4 ``%YAML:1.0``, OpenCV 5
+                   ``%YAML 1.2``), or FileStorage JSON (``"type_id": "opencv-matrix"``); read
+                   with ``cv2.FileStorage``
 ``kalibr``         YAML with ``cam0``, ``cam1``... entries
 ``ros``            YAML with ``camera_matrix`` (sensor_msgs/CameraInfo)
 ``basalt``         JSON with ``value0.intrinsics``
@@ -35,15 +36,34 @@ from .rig import Rig
 
 FORMATS = ("opencv", "kalibr", "ros", "basalt", "woodscape", "aria", "colmap")
 
+#: Characters: calibration files are a few KB; larger text is refused before it is parsed.
+MAX_FILE_SIZE = 1 << 20
+
 
 def parse(text: str, source: str = "<string>", *, format: str | None = None) -> Rig:
     """Parse calibration text; ``format`` forces one of :data:`FORMATS`, else it is detected."""
     if format is not None and format not in FORMATS:
         raise ValueError(f"format: expected one of {', '.join(FORMATS)}, got {format!r}")
+    if len(text) > MAX_FILE_SIZE:
+        raise CalibrationError("(file)", f"{len(text)} characters; a calibration file has a "
+                               f"few thousand (limit {MAX_FILE_SIZE})", source=source)
+    try:
+        return _parse(text, source, format)
+    except RecursionError:
+        raise CalibrationError("(file)", "nested too deeply to be a calibration file",
+                               source=source) from None
+
+
+def _is_opencv_json(text: str) -> bool:
+    return '"opencv-matrix"' in text or '"type_id"' in text
+
+
+def _parse(text: str, source: str, format: str | None) -> Rig:
     stripped = text.lstrip("\ufeff \t\r\n")
     if format == "opencv" or (format is None and (
             stripped.startswith("%YAML") or stripped.startswith("<?xml")
-            or stripped.startswith("<opencv_storage>"))):
+            or stripped.startswith("<opencv_storage>")
+            or (stripped.startswith("{") and _is_opencv_json(stripped)))):
         return opencv.read(text, source)
     if format == "colmap" or (format is None and colmap.looks_like(text)):
         return colmap.read(text, source)
@@ -89,10 +109,21 @@ def load_rig(path: str | os.PathLike, *, format: str | None = None) -> Rig:
     """
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        if p.stat().st_size > MAX_FILE_SIZE:
+            raise CalibrationError("(file)", f"{p.stat().st_size} bytes; a calibration file has "
+                                   f"a few thousand (limit {MAX_FILE_SIZE})", source=str(p))
+        raw = p.read_bytes()
     except FileNotFoundError:
         raise CalibrationError("path", "no such file", source=str(p)) from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except OSError as exc:
+        raise CalibrationError("(file)", f"cannot be read: {exc}", source=str(p)) from None
+    if p.name == "cameras.bin" or raw[:8].count(b"\x00") >= 4:
+        raise CalibrationError("(file)", "a binary file (a binary COLMAP model?); convert it "
+                               "with 'colmap model_converter --output_type TXT' and give "
+                               "cameras.txt", source=str(p))
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
         raise CalibrationError("(file)", f"cannot be read as UTF-8 text: {exc}", source=str(p)) from None
     return parse(text, str(p), format=format)
 

@@ -13,6 +13,9 @@ from ..errors import CalibrationError
 from ..registry import model_class
 from ..transforms import check_rigid
 
+#: Pixels: wider or taller images are not camera images (and would exhaust memory).
+MAX_IMAGE_SIZE = 32768
+
 
 class Fields:
     """Reads values out of a parsed document; every failure is a :class:`CalibrationError`.
@@ -46,10 +49,14 @@ class Fields:
             try:
                 value = float(value)
             except ValueError:
-                raise self.fail(field, f"expected a number, got {value!r}") from None
+                raise self.fail(field, f"expected a number, got {value[:40]!r}") from None
         if isinstance(value, bool) or not isinstance(value, int | float | np.number):
-            raise self.fail(field, f"expected a number, got {type(value).__name__} {value!r}")
-        out = float(value)
+            raise self.fail(field, f"expected a number, got {type(value).__name__}")
+        try:
+            out = float(value)
+        except OverflowError:
+            raise self.fail(field, "expected a finite number, got an integer too large for "
+                            "a float") from None
         if not math.isfinite(out):
             raise self.fail(field, f"expected a finite number, got {value!r}")
         return out
@@ -65,13 +72,14 @@ class Fields:
 
     def size(self, value: Any, field: str) -> int:
         out = self.number(value, field)
-        if out <= 0 or not out.is_integer():
-            raise self.fail(field, f"expected a positive integer image size, got {value!r}")
+        if out <= 0 or not out.is_integer() or out > MAX_IMAGE_SIZE:
+            raise self.fail(field, f"expected a positive integer image size up to "
+                            f"{MAX_IMAGE_SIZE}, got {out:g}")
         return int(out)
 
     def string(self, value: Any, field: str) -> str:
         if not isinstance(value, str):
-            raise self.fail(field, f"expected a string, got {type(value).__name__} {value!r}")
+            raise self.fail(field, f"expected a string, got {type(value).__name__}")
         return value
 
     def transform(self, value: Any, field: str) -> NDArray[np.float64]:

@@ -17,6 +17,9 @@ _MODELS = {
     "SIMPLE_RADIAL_FISHEYE": ("kannala_brandt", ("f", "cx", "cy", "k1")),
     "RADIAL_FISHEYE": ("kannala_brandt", ("f", "cx", "cy", "k1", "k2")),
     "EUCM": ("enhanced_unified", ("fx", "fy", "cx", "cy", "alpha", "beta")),
+    # The equidistant model without distortion: Kannala-Brandt with k = 0.
+    "SIMPLE_FISHEYE": ("kannala_brandt", ("f", "cx", "cy")),
+    "FISHEYE": ("kannala_brandt", ("fx", "fy", "cx", "cy")),
 }
 
 
@@ -30,8 +33,10 @@ def looks_like(text: str) -> bool:
 
 
 def read(text: str, source: str) -> Rig:
+    """Every supported camera of the file; lines of unsupported models are skipped, and asking
+    for one of those cameras is the error (``Rig.unsupported``)."""
     f = Fields(source)
-    cameras, names = [], []
+    cameras, names, unsupported = [], [], {}
     for lineno, line in enumerate(text.splitlines(), start=1):
         s = line.strip()
         if not s or s.startswith("#"):
@@ -42,8 +47,10 @@ def read(text: str, source: str) -> Rig:
             raise f.fail(field, "expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS...")
         cam_id, model = parts[0], parts[1]
         if model not in _MODELS:
-            raise f.fail(f"{field}.MODEL", f"unknown or unsupported camera model {model!r}; "
-                         f"expected one of {', '.join(_MODELS)}")
+            unsupported[cam_id] = f.fail(
+                f"{field}.MODEL", f"unknown or unsupported camera model {model[:40]!r}; "
+                f"expected one of {', '.join(_MODELS)}")
+            continue
         name, keys = _MODELS[model]
         values = parts[4:]
         if len(values) != len(keys):
@@ -57,5 +64,8 @@ def read(text: str, source: str) -> Rig:
                                 height=f.size(parts[3], f"{field}.HEIGHT")))
         names.append(cam_id)
     if not cameras:
+        if unsupported:
+            raise next(iter(unsupported.values()))
         raise f.fail("(file)", "expected at least one camera line")
-    return Rig(tuple(cameras), tuple(names), tuple(None for _ in cameras), reference="none")
+    return Rig(tuple(cameras), tuple(names), tuple(None for _ in cameras), reference="none",
+               unsupported=unsupported)

@@ -23,6 +23,9 @@ from ..registry import model_class
 from ._fields import Fields
 from .rig import Rig
 
+#: A calibration matrix has a handful of elements; more is not a calibration.
+_MAX_ELEMENTS = 64
+
 # cv2 reports parse errors as cv2.error, and some malformed XML as SystemError.
 _CV2_ERRORS = (cv2.error, SystemError)
 
@@ -52,12 +55,14 @@ def _matrix(node: cv2.FileNode) -> np.ndarray | None:
     if not (rows.isInt() and cols.isInt() and data.isSeq()):
         return None
     n_rows, n_cols = int(rows.real()), int(cols.real())
-    if n_rows < 0 or n_cols < 0 or data.size() != n_rows * n_cols:
+    if n_rows < 0 or n_cols < 0 or data.size() != n_rows * n_cols or data.size() > _MAX_ELEMENTS:
         return None
-    items = [data.at(i) for i in range(data.size())]
-    if not all(it.isInt() or it.isReal() for it in items):
+    # The shape agrees with the data, so mat() is safe (and linear; FileNode.at(i) in a loop is
+    # quadratic).
+    m = node.mat()
+    if m is None or m.size != n_rows * n_cols:
         return None
-    return np.array([it.real() for it in items], dtype=np.float64).reshape(n_rows, n_cols)
+    return np.asarray(m, dtype=np.float64).reshape(n_rows, n_cols)
 
 
 def read(text: str, source: str) -> Rig:
@@ -105,6 +110,7 @@ def read(text: str, source: str) -> Rig:
             if k_node is None:
                 raise f.fail("camera_matrix", "missing")
             k = f.numbers(k_node, "camera_matrix", 9)
+            _check_camera_matrix(f, k)
             d = [] if d_node is None else f.numbers(d_node, "distortion_coefficients")
             intr = dict(fx=k[0], fy=k[4], cx=k[2], cy=k[5], width=width, height=height)
             if fisheye is not None and f.number(fisheye, "fisheye_model") == 1:
@@ -124,6 +130,17 @@ def read(text: str, source: str) -> Rig:
         fs.release()
     name = os.path.splitext(os.path.basename(source))[0]
     return Rig(cameras=(camera,), names=(name,), extrinsics=(None,), reference="none")
+
+
+def _check_camera_matrix(f: Fields, k: list[float]) -> None:
+    """``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]`` with no skew ``s`` (no model here has one: a
+    skew of 1 % of fx ignored would be pixels of error)."""
+    if abs(k[1]) > 1e-9 * max(abs(k[0]), 1.0):
+        raise f.fail("camera_matrix", f"non-zero skew {k[1]!r} (element [0][1]); the camera "
+                     "models here have none")
+    if any(abs(k[i]) > 1e-12 for i in (3, 6, 7)) or abs(k[8] - 1.0) > 1e-12:
+        raise f.fail("camera_matrix", "expected the form [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], "
+                     f"got last rows {[k[3:6], k[6:9]]}")
 
 
 def model_class_or_fail(f: Fields, model: str) -> type[CameraModel]:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,6 +30,8 @@ class Rig:
     names: tuple[str, ...]
     extrinsics: tuple[NDArray[np.float64] | None, ...]
     reference: str = "none"
+    #: Cameras the file names but no model here reads, with the error to raise when asked for.
+    unsupported: dict = field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.cameras)
@@ -46,6 +48,8 @@ class Rig:
             return int(camera) % len(self)
         if isinstance(camera, str) and camera in self.names:
             return self.names.index(camera)
+        if str(camera) in self.unsupported:
+            raise self.unsupported[str(camera)]
         raise ValueError(f"camera: no camera {camera!r}; the file has {list(self.names)}")
 
     def __getitem__(self, camera: int | str) -> CameraModel:
