@@ -43,6 +43,10 @@ def fit_model(reference: CameraModel, name: str, *, step: int = 8,
     fx, fy, cx, cy = reference._affine()
     start = {"fx": fx, "fy": fy, "cx": cx, "cy": cy, **_START, **_START_BY_MODEL.get(name, {})}
     names = [n for n in cls.param_names if n in start]
+    unknown = [n for n in cls.param_names if n not in start and not hasattr(reference, n)]
+    if unknown:
+        raise ValueError(f"name: fitting {name} to a {reference.name} camera is not supported "
+                         f"(no starting value for {unknown})")
     fixed = {n: getattr(reference, n) for n in cls.param_names if n not in start}
     if reference.name == name:  # refit of the same model: start from the answer
         start.update({n: getattr(reference, n) for n in names})

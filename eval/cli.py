@@ -14,6 +14,7 @@ from tqdm import tqdm
 
 from fisheyemotion import calib, synth
 from fisheyemotion.cli import REPO_DATA, CliError, calib_files, calibration_table
+from fisheyemotion.outputs import atomic_folder
 from fisheyemotion.params import Params
 
 from .evaluate import evaluate, sequence_paths
@@ -61,32 +62,38 @@ def run_eval(paths: list[Path], params: Params, flows: list[str], out: Path, *,
 def cmd_eval(args: argparse.Namespace) -> int:
     paths = sequence_paths(args.seq_dirs)
     params = _params(args)
-    results, report = run_eval(paths, params, _flows(args.flow), Path(args.out),
-                               workers=args.workers, scheduler=args.scheduler,
-                               progress=not args.quiet,
-                               commands=["fisheyemotion " + shlex.join(sys.argv[1:])])
-    if args.additions:
-        from .evaluate import additions_table
-
-        table, scenes = additions_table(paths, _flows(args.flow), workers=args.workers,
-                                        progress=not args.quiet, by_sequence=True)
-        table.to_csv(Path(args.out) / "additions.csv", index=False)
-        scenes.to_csv(Path(args.out) / "additions_by_sequence.csv", index=False)
-        md = Path(args.out) / "report.md"
-        per_scene = "".join(
-            f"\n### {label} per sequence\n\n"
-            + scenes.pivot_table(index=["flow", "variant"], columns="sequence", values=column,
-                                 sort=False).to_markdown(floatfmt=".2f") + "\n"
-            for column, label in (("detection", "Detection rate"),
-                                  ("fp_frames", "False-positive frames")))
-        md.write_text(md.read_text() + "\n## The additions beyond the paper, each alone and all "
-                      "together\n\n" + table.to_markdown(index=False, floatfmt=".2f") + "\n"
-                      + per_scene + "\nEvery figure per sequence (detection, coverage, "
-                      "false-positive frames and static pixels, IoU): additions_by_sequence.csv\n")
-        print(table.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
+    final = Path(args.out)
+    with atomic_folder(final, overwrite=args.overwrite) as out:
+        results, report = run_eval(paths, params, _flows(args.flow), out,
+                                   workers=args.workers, scheduler=args.scheduler,
+                                   progress=not args.quiet,
+                                   commands=["fisheyemotion " + shlex.join(sys.argv[1:])])
+        if args.additions:
+            _write_additions(paths, args, out)
     _print_table2(results)
-    print(f"report: {report}")
+    print(f"report: {final / report.name}")
     return 0
+
+
+def _write_additions(paths: list[Path], args: argparse.Namespace, out: Path) -> None:
+    from .evaluate import additions_table
+
+    table, scenes = additions_table(paths, _flows(args.flow), workers=args.workers,
+                                    progress=not args.quiet, by_sequence=True)
+    table.to_csv(out / "additions.csv", index=False)
+    scenes.to_csv(out / "additions_by_sequence.csv", index=False)
+    md = out / "report.md"
+    per_scene = "".join(
+        f"\n### {label} per sequence\n\n"
+        + scenes.pivot_table(index=["flow", "variant"], columns="sequence", values=column,
+                             sort=False).to_markdown(floatfmt=".2f") + "\n"
+        for column, label in (("detection", "Detection rate"),
+                              ("fp_frames", "False-positive frames")))
+    md.write_text(md.read_text() + "\n## The additions beyond the paper, each alone and all "
+                  "together\n\n" + table.to_markdown(index=False, floatfmt=".2f") + "\n"
+                  + per_scene + "\nEvery figure per sequence (detection, coverage, "
+                  "false-positive frames and static pixels, IoU): additions_by_sequence.csv\n")
+    print(table.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
 
 
 def _print_table2(results) -> None:
@@ -130,12 +137,14 @@ def cmd_demo(args: argparse.Namespace) -> int:
     print(f"Rendered {len(seqs)} sequences into {out / 'sequences'}: open-road scenarios x "
           f"{args.frames} frames with {DEMO_CAMERA}, cluttered streets at their own length with "
           f"{', '.join(STREET_CAMERAS.values())}")
-    results, report = run_eval(
-        seqs, Params(), _flows(args.flow), out / "report", workers=args.workers, scheduler=None,
-        progress=not args.quiet, title="fisheyemotion demo: bundled scenarios", real_data=data,
-        commands=[f"fisheyemotion demo --frames {args.frames} --flow {args.flow}"])
+    with atomic_folder(out / "report", overwrite=True) as tmp:  # the demo's own folder
+        results, report = run_eval(
+            seqs, Params(), _flows(args.flow), tmp, workers=args.workers, scheduler=None,
+            progress=not args.quiet, title="fisheyemotion demo: bundled scenarios",
+            real_data=data,
+            commands=[f"fisheyemotion demo --frames {args.frames} --flow {args.flow}"])
     _print_table2(results)
-    print(f"Report: {report.resolve()}")
+    print(f"Report: {(out / 'report' / report.name).resolve()}")
     return 0
 
 
@@ -152,7 +161,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="sequence folders, or folders holding them")
     p.add_argument("--params", help="YAML/JSON file of Params, or 'paper' for the paper's pipeline")
     p.add_argument("--flow", default="farneback", help="comma-separated: farneback,dis")
-    p.add_argument("--out", required=True, help="report folder")
+    p.add_argument("--out", required=True, help="report folder (written whole at the end)")
+    p.add_argument("--overwrite", action="store_true", help="replace a non-empty --out")
     p.add_argument("--workers", type=int, help="local processes (default: CPU count)")
     p.add_argument("--scheduler", help="Dask distributed scheduler address (tcp://host:port)")
     p.add_argument("--additions", action="store_true",

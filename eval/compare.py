@@ -32,9 +32,16 @@ def fit_table(cameras: list[tuple[str, calib.CameraModel]]) -> pd.DataFrame:
     models = list(dict.fromkeys(cam.name for _, cam in cameras))
     for ref_name, ref in cameras:
         for model in models:
-            fitted, rms = fit_model(ref, model)
+            try:
+                fitted, rms = fit_model(ref, model)
+            except ValueError as exc:  # a pair that cannot be fitted: said, not fatal
+                rows.append({"reference": ref_name, "fitted_model": model, "rms_px": np.nan,
+                             "reference_fov_deg": ref.fov_deg, "fitted_fov_deg": np.nan,
+                             "note": str(exc)})
+                continue
             rows.append({"reference": ref_name, "fitted_model": model, "rms_px": rms,
-                         "reference_fov_deg": ref.fov_deg, "fitted_fov_deg": fitted.fov_deg})
+                         "reference_fov_deg": ref.fov_deg, "fitted_fov_deg": fitted.fov_deg,
+                         "note": ""})
     return pd.DataFrame(rows)
 
 

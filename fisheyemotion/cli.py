@@ -241,6 +241,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
     camera = calib.load(args.calib, camera=args.camera)
     out = synth.write_sequence(args.out, camera, scenario, frames=args.frames, seed=args.seed,
                                supersample=args.supersample, noise_sigma=args.noise,
+                               overwrite=args.overwrite,
                                progress=not args.quiet)
     print(f"wrote {out}")
     return 0
@@ -297,14 +298,20 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("synth", help="render a scenario to a sequence folder")
     p.add_argument("--scenario", help="bundled scenario name or YAML file")
     p.add_argument("--calib", help="calibration file of the camera")
-    p.add_argument("--camera", type=_camera_arg, default=0)
-    p.add_argument("--frames", type=int, help="number of frames (default: the scenario's)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--supersample", type=int, default=2)
-    p.add_argument("--noise", type=float, default=0.0, help="sensor noise sigma, grey levels")
-    p.add_argument("--out", help="output sequence folder")
+    p.add_argument("--camera", type=_camera_arg, default=0,
+                   help="camera index or name in --calib (default: %(default)s)")
+    p.add_argument("--frames", type=int, help="number of frames, at least 2 (default: the "
+                   "scenario's)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the sensor noise (default: %(default)s)")
+    p.add_argument("--supersample", type=int, default=2,
+                   help="rays per pixel along each axis, 1-8 (default: %(default)s)")
+    p.add_argument("--noise", type=float, default=0.0,
+                   help="sensor noise sigma, grey levels (default: %(default)s)")
+    p.add_argument("--out", help="output sequence folder (written whole at the end)")
+    p.add_argument("--overwrite", action="store_true", help="replace a non-empty --out")
     p.add_argument("--list", action="store_true", help="list the bundled scenarios")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_synth)
 
     p = sub.add_parser("calib", help="print model, size and FOV of calibration files")

@@ -199,7 +199,8 @@ class Params:
             if not _finite(v) or v < 0:
                 raise ValueError(f"{name}: expected a finite number >= 0, got {_short(v)}")
         if not _finite(self.horizon_margin) or not -1 < self.horizon_margin < 1:
-            raise ValueError(f"horizon_margin: expected a number in (-1, 1), got {_short(self.horizon_margin)}")
+            raise ValueError("horizon_margin: expected a number in (-1, 1), got "
+                             f"{_short(self.horizon_margin)}")
         if not _finite(self.prior_distance) or self.prior_distance <= 0:
             raise ValueError(f"prior_distance: expected > 0 metres, got {_short(self.prior_distance)}")
         if self.saturation <= 0:
@@ -207,9 +208,11 @@ class Params:
         for name, options in (("lambda_p_mode", LAMBDA_P_MODES), ("flow", FLOW_METHODS),
                               ("dis_preset", DIS_PRESETS), ("flow_prior", FLOW_PRIORS)):
             if getattr(self, name) not in options:
-                raise ValueError(f"{name}: expected one of {', '.join(options)}, got {_short(getattr(self, name))}")
+                raise ValueError(f"{name}: expected one of {', '.join(options)}, got "
+                                 f"{_short(getattr(self, name))}")
         if not _finite(self.temporal_decay) or not 0 <= self.temporal_decay < 1:
-            raise ValueError(f"temporal_decay: expected a number in [0, 1), got {_short(self.temporal_decay)}")
+            raise ValueError("temporal_decay: expected a number in [0, 1), got "
+                             f"{_short(self.temporal_decay)}")
         for name, low in (("grid", 1), ("min_area", 0), ("frame_gap", 1), ("persistence", 1),
                           ("scene_memory", 1)):
             v = getattr(self, name)

@@ -49,6 +49,9 @@ class Sequence:
         if not (self.path / "frames").is_dir():
             raise ValueError(f"{self.path}: not a sequence folder (no frames/)")
         self.frame_paths = sorted((self.path / "frames").glob("*.png"))
+        for sub in ("masks", "ids"):
+            if (self.path / "objects.csv").exists() and not (self.path / sub).is_dir():
+                raise ValueError(f"{self.path / sub}: missing (the sequence's ground truth)")
         if len(self.frame_paths) < 2:
             raise ValueError(f"{self.path}: frames/: expected at least 2 frames")
 
@@ -82,14 +85,35 @@ class Sequence:
     @cached_property
     def scenario(self) -> dict:
         p = self.path / "scenario.yaml"
-        return yaml.safe_load(p.read_text()) if p.exists() else {}
+        if not p.exists():
+            return {}
+        try:
+            return yaml.safe_load(p.read_text(encoding="utf-8")) or {}
+        except (yaml.YAMLError, UnicodeDecodeError, RecursionError) as exc:
+            raise ValueError(f"{p}: cannot be read as YAML: {str(exc)[:200]}") from None
 
     @cached_property
     def objects(self) -> pd.DataFrame:
         p = self.path / "objects.csv"
         if not p.exists():
             return pd.DataFrame(columns=list(OBJECT_COLUMNS))
-        return pd.read_csv(p)
+        try:
+            table = pd.read_csv(p)
+        except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as exc:
+            raise ValueError(f"{p}: cannot be read as CSV: {str(exc)[:200]}") from None
+        missing = [c for c in OBJECT_COLUMNS if c not in table.columns]
+        if missing:
+            raise ValueError(f"{p}: missing column(s) {missing}")
+        for col in ("frame", "id", "distance", "visible_pixels"):
+            if not pd.api.types.is_numeric_dtype(table[col]):
+                raise ValueError(f"{p}: {col}: expected numbers")
+        if table["moving"].dtype != bool:
+            try:
+                table["moving"] = table["moving"].map(
+                    {True: True, False: False, "True": True, "False": False}).astype(bool)
+            except (TypeError, ValueError):
+                raise ValueError(f"{p}: moving: expected True or False") from None
+        return table
 
     def frame(self, index: int) -> NDArray[np.uint8]:
         img = cv2.imread(str(self.frame_paths[index]), cv2.IMREAD_COLOR)
@@ -97,19 +121,38 @@ class Sequence:
             raise ValueError(f"{self.frame_paths[index]}: cannot be read as an image")
         return img
 
-    def _png(self, folder: str, index: int, flags: int) -> NDArray | None:
+    def _png(self, folder: str, index: int, flags: int, dtypes: tuple) -> NDArray:
+        """A ground-truth image of frame ``index``: present, readable, of the frame's size."""
         p = self.path / folder / self.frame_paths[index].name
-        return cv2.imread(str(p), flags) if p.exists() else None
+        if not p.is_file():
+            raise ValueError(f"{p}: missing (the ground truth of {self.frame_paths[index].name})")
+        img = cv2.imread(str(p), flags)
+        if img is None or img.ndim != 2 or img.dtype not in dtypes:
+            raise ValueError(f"{p}: cannot be read as a single-channel "
+                             f"{'/'.join(np.dtype(d).name for d in dtypes)} image")
+        size = self.camera.height, self.camera.width
+        if img.shape != size:
+            raise ValueError(f"{p}: expected {size[1]}x{size[0]} (the camera's size), got "
+                             f"{img.shape[1]}x{img.shape[0]}")
+        return img
 
-    def mask(self, index: int) -> NDArray[np.uint8] | None:
-        return self._png("masks", index, cv2.IMREAD_GRAYSCALE)
+    def mask(self, index: int) -> NDArray[np.uint8]:
+        return self._png("masks", index, cv2.IMREAD_GRAYSCALE, (np.uint8,))
 
-    def ids(self, index: int) -> NDArray[np.uint16] | None:
-        return self._png("ids", index, cv2.IMREAD_UNCHANGED)
+    def ids(self, index: int) -> NDArray[np.uint16]:
+        return self._png("ids", index, cv2.IMREAD_UNCHANGED, (np.uint8, np.uint16))
 
     def roi(self) -> NDArray[np.uint8] | None:
         p = self.path / "roi.png"
-        return cv2.imread(str(p), cv2.IMREAD_GRAYSCALE) if p.exists() else None
+        if not p.exists():
+            return None
+        roi = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE)
+        if roi is None:
+            raise ValueError(f"{p}: cannot be read as an image")
+        if roi.shape != (self.camera.height, self.camera.width):
+            raise ValueError(f"{p}: expected {self.camera.width}x{self.camera.height} (the "
+                             f"camera's size), got {roi.shape[1]}x{roi.shape[0]}")
+        return roi
 
     def flow(self, index: int) -> dict[str, NDArray] | None:
         p = self.path / "flow" / self.frame_paths[index].name.replace(".png", ".npz")

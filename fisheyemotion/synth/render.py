@@ -94,8 +94,12 @@ class Renderer:
 
     def __init__(self, camera: CameraModel, scenario: Scenario, *, supersample: int = 2,
                  noise_sigma: float = 0.0, blur_sigma: float = 0.0, seed: int = 0) -> None:
-        if not isinstance(supersample, int) or supersample < 1:
-            raise ValueError(f"supersample: expected an integer >= 1, got {supersample!r}")
+        if isinstance(supersample, bool) or not isinstance(supersample, int) or not 1 <= supersample <= 8:
+            raise ValueError(f"supersample: expected an integer in [1, 8], got {supersample!r}")
+        for name, value in (("noise_sigma", noise_sigma), ("blur_sigma", blur_sigma)):
+            if isinstance(value, bool) or not isinstance(value, int | float) \
+                    or not np.isfinite(value) or value < 0:
+                raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
         self.camera, self.scenario = camera, scenario
         self.ss, self.noise_sigma, self.blur_sigma, self.seed = supersample, noise_sigma, blur_sigma, seed
         w, h = camera.width, camera.height

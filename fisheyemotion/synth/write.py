@@ -14,6 +14,7 @@ from tqdm import tqdm
 
 from ..calib import save_opencv
 from ..calib.base import CameraModel
+from ..outputs import atomic_folder
 from ..poses import write_tum
 from ..sequence import OBJECT_COLUMNS, frame_name
 from .render import FrameTruth, Renderer
@@ -64,7 +65,7 @@ def object_rows(scenario: Scenario, truth: FrameTruth) -> list[dict]:
 
 def write_sequence(out: str | os.PathLike, camera: CameraModel, scenario: Scenario, *,
                    frames: int | None = None, flow: bool = True, progress: bool = True,
-                   **render_options) -> Path:
+                   overwrite: bool = True, **render_options) -> Path:
     """Render ``scenario`` through ``camera`` into the folder ``out`` (created).
 
     Parameters
@@ -75,14 +76,27 @@ def write_sequence(out: str | os.PathLike, camera: CameraModel, scenario: Scenar
         Also write ``flow/NNNNNN.npz`` (ground-truth flow and range).
     progress : bool
         Show a progress bar.
+    overwrite : bool
+        Replace a non-empty ``out`` (as a whole); False refuses it with a ValueError.
     render_options
         Passed to :class:`Renderer` (``supersample``, ``noise_sigma``, ``blur_sigma``, ``seed``).
     """
     out = Path(out)
-    for sub in ("frames", "masks", "ids") + (("flow",) if flow else ()):
-        (out / sub).mkdir(parents=True, exist_ok=True)
+    if frames is not None and (isinstance(frames, bool) or not isinstance(frames, int)
+                               or frames < 2):
+        raise ValueError(f"frames: expected an integer >= 2, got {frames!r}")
     n = scenario.frames if frames is None else min(int(frames), scenario.frames)
     renderer = Renderer(camera, scenario, **render_options)
+    # Written whole or not at all (Ctrl-C included), replacing any earlier sequence there.
+    with atomic_folder(out, overwrite=overwrite) as tmp:
+        _write(tmp, renderer, camera, scenario, n, flow, progress)
+    return out
+
+
+def _write(out: Path, renderer: Renderer, camera: CameraModel, scenario: Scenario, n: int,
+           flow: bool, progress: bool) -> None:
+    for sub in ("frames", "masks", "ids") + (("flow",) if flow else ()):
+        (out / sub).mkdir(parents=True, exist_ok=True)
     poses, rows = [], []
     for k in tqdm(range(n), desc=f"synth {scenario.name}", disable=not progress, leave=False):
         truth = renderer.render(k)
@@ -101,4 +115,3 @@ def write_sequence(out: str | os.PathLike, camera: CameraModel, scenario: Scenar
     cv2.imwrite(str(out / "roi.png"), renderer.roi())
     pd.DataFrame(rows, columns=list(OBJECT_COLUMNS)).to_csv(out / "objects.csv", index=False)
     (out / "scenario.yaml").write_text(yaml.safe_dump(scenario_doc(scenario), sort_keys=False))
-    return out
