@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import threading
+import warnings
 from collections import OrderedDict, deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -34,6 +35,9 @@ from .significance import cell_sigma, pixel_angle
 from .static_scene import TRIANGULATION_PARALLAX, StaticScene, triangulate_range
 
 CONSTRAINT_NAMES = ("epipolar", "depth", "height", "antiparallel")
+
+#: Share of the image flagged moving above which a given road (or the poses) is suspect.
+FLOODED = 0.5
 
 #: Metres: the provisional road's distance below the camera while ``road='auto'`` searches.
 PROVISIONAL_HEIGHT = 1.0
@@ -190,6 +194,7 @@ class MotionDetector:
                        if self.params.flow_prior != "none" else None)
         self.scene = (StaticScene(camera, memory=self.params.scene_memory)
                       if self.params.scene_prior and self._prior is not None else None)
+        self._road_warned = False
         self._pixel_coords = None
         self._pixel_angle: NDArray[np.float64] | None = None
         self._view: NDArray[np.bool_] | None = None
@@ -376,7 +381,19 @@ class MotionDetector:
                                               min_parallax=TRIANGULATION_PARALLAX)
                 with np.errstate(invalid="ignore"):
                     self.scene.add(self._rays0, ranges, t0, valid & (likelihood < p.threshold))
+        self._check_road(t0)
         return self._assemble(flow, cell_flow, res, likelihood, valid, stream=stream)
+
+    def _check_road(self, pose: NDArray) -> None:
+        """Warn (once per detector) when a given road is implausible for the camera."""
+        if self._road_warned or not self.road.known or self.ground is not None:
+            return
+        height = float(self.road.height(pose[:3, 3]))
+        if height <= 0.05:
+            self._road_warned = True
+            warnings.warn(f"road: the camera is {height:.2f} m above the given road (on or "
+                          "under it); is the road's normal pointing up in this world frame? "
+                          "road='auto' estimates it", stacklevel=3)
 
     def _observe_ground(self, gray: NDArray[np.uint8], pose: NDArray) -> None:
         """``road='auto'``: the estimator sees every frame (it tracks consecutive frames) and
@@ -508,6 +525,12 @@ class MotionDetector:
                                            seed_threshold=p.seed_threshold)
         mask = grid_upsample(cell_mask.astype(np.uint8) * 255, p.grid, w, h)
         mask[~self._pixel_valid] = 0
+        if not self._road_warned and self.road.known and self.ground is None \
+                and cell_mask[self._cell_valid].mean() > FLOODED:
+            self._road_warned = True
+            warnings.warn(f"detection: more than {FLOODED:.0%} of the image is flagged moving; "
+                          "are the poses world_from_cam and the road right for this world "
+                          "frame? road='auto' estimates the road", stacklevel=3)
         grid = Grid(p.grid, self._centres, cell_flow, measured, valid)
         return Detection(likelihood, mask, maps, flow, grid, regions, res.static_camera)
 

@@ -401,3 +401,24 @@ def test_any_json_calibration_is_a_camera_or_a_value_error(doc):
         calib.parse(json.dumps(doc), "fuzz.json")
     except ValueError:
         pass
+
+
+def test_double_sphere_at_xi_1_keeps_precision_near_180_degrees():
+    # At xi = 1 the radius simplifies exactly to sin(t/2) / (alpha + (1 - alpha) cos(t/2)).
+    cam = calib.DoubleSphere(fx=200, fy=200, cx=320, cy=240, xi=1.0, alpha=0.6, width=640,
+                             height=480)
+    theta = np.radians(np.linspace(170, 179.99, 50))
+    exact = np.sin(theta / 2) / (0.6 + 0.4 * np.cos(theta / 2))
+    np.testing.assert_allclose(cam._radius(theta), exact, rtol=1e-13)
+    rays = np.stack([np.sin(theta), np.zeros_like(theta), np.cos(theta)], -1)
+    pixels, ok = cam.project(rays)
+    back, ok2 = cam.unproject(pixels)
+    again, _ = cam.project(back)
+    assert ok.all() and ok2.all() and np.abs(again - pixels).max() < 1e-9
+
+
+def test_a_camera_under_the_given_road_warns(frames):
+    det = fm.MotionDetector(CAM, fm.Road(normal=(0, 0, -1), offset=0.0),
+                            fm.Params(frame_gap=1, flow="dis"))
+    with pytest.warns(UserWarning, match="on or under"):
+        det.detect(frames[0].image, frames[1].image, frames[0].pose, frames[1].pose)

@@ -54,18 +54,28 @@ class DoubleSphere(CameraModel):
                              "unified model with negative xi); expected alpha > 0")
 
     def _d2(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.sqrt(1.0 + 2.0 * self.xi * np.cos(theta) + self.xi**2)
+        # 1 + 2 xi cos(t) + xi^2 as a sum of non-negative terms (no cancellation near 180 deg
+        # at xi = 1): (1 - xi)^2 + 4 xi cos^2(t/2) for xi >= 0, (1 + xi)^2 + 4 |xi| sin^2(t/2)
+        # otherwise.
+        xi = self.xi
+        if xi >= 0:
+            return np.sqrt((1.0 - xi) ** 2 + 4.0 * xi * np.cos(theta / 2) ** 2)
+        return np.sqrt((1.0 + xi) ** 2 - 4.0 * xi * np.sin(theta / 2) ** 2)
+
+    def _xi_plus_cos(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``xi + cos(t)`` as ``(xi - 1) + 2 cos^2(t/2)``: exact where it vanishes at xi = 1."""
+        return (self.xi - 1.0) + 2.0 * np.cos(theta / 2) ** 2
 
     def _radius(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
-        a, xi = self.alpha, self.xi
-        den = a * self._d2(theta) + (1 - a) * (xi + np.cos(theta))
+        a = self.alpha
+        den = a * self._d2(theta) + (1 - a) * self._xi_plus_cos(theta)
         return np.sin(theta) / den
 
     def _radius_derivative(self, theta: NDArray[np.float64]) -> NDArray[np.float64]:
         a, xi = self.alpha, self.xi
         s, c = np.sin(theta), np.cos(theta)
         d2 = self._d2(theta)
-        den = a * d2 + (1 - a) * (xi + c)
+        den = a * d2 + (1 - a) * self._xi_plus_cos(theta)
         return (c * den + s * s * (a * xi / d2 + 1 - a)) / den**2
 
     def _lift(self, mx, my, r):  # noqa: D102 - closed form above
