@@ -63,12 +63,13 @@ def epipolar_circle() -> None:
     fig.savefig(OUT / "epipolar_circle.png", dpi=100)
 
 
-def scenario_samples(frame: int = 10) -> None:
+def scenario_samples(frame: int = 10, street_frame: int = 36, names=None) -> None:
+    """Frame 10 of each scenario (36 of the 48-frame streets, when their pedestrians are out)."""
     cam = calib.load(Path(__file__).parents[1] / "data" / "calib" / "front_kb_640x480.yaml")
-    for name in synth.list_scenarios():
+    for name in names or synth.list_scenarios():
         sc = synth.load_scenario(name)
         r = synth.Renderer(cam, sc)
-        truth = r.render(frame)
+        truth = r.render(street_frame if name.startswith("street") else frame)
         img = truth.image.copy()
         edges = cv2.Canny(truth.moving, 50, 150) > 0
         img[edges] = (0, 255, 0)
