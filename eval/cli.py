@@ -45,11 +45,11 @@ def _flows(text: str) -> list[str]:
 def run_eval(paths: list[Path], params: Params, flows: list[str], out: Path, *,
              workers: int | None, scheduler: str | None, progress: bool,
              commands: list[str] | None = None, title: str = "fisheyemotion evaluation",
-             real_data: Path | None = None):
+             real_data: Path | None = None, **options):
     results = []
     for flow in flows:
         results += evaluate(paths, params.replace(flow=flow), workers=workers,
-                            scheduler=scheduler, progress=progress)
+                            scheduler=scheduler, progress=progress, **options)
     real = None
     if real_data is not None and (real_data / "real").is_dir():
         from .real import run_real
@@ -67,7 +67,9 @@ def cmd_eval(args: argparse.Namespace) -> int:
         results, report = run_eval(paths, params, _flows(args.flow), out,
                                    workers=args.workers, scheduler=args.scheduler,
                                    progress=not args.quiet,
-                                   commands=["fisheyemotion " + shlex.join(sys.argv[1:])])
+                                   commands=["fisheyemotion " + shlex.join(sys.argv[1:])],
+                                   world=args.world, road=args.road,
+                                   camera_height=args.camera_height)
         if args.additions:
             _write_additions(paths, args, out)
     _print_table2(results)
@@ -165,6 +167,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--overwrite", action="store_true", help="replace a non-empty --out")
     p.add_argument("--workers", type=int, help="local processes (default: CPU count)")
     p.add_argument("--scheduler", help="Dask distributed scheduler address (tcp://host:port)")
+    p.add_argument("--world", choices=("scene", "first_camera", "raised"), default="scene",
+                   help="give the detector the poses in this world frame: the scene's (z up, "
+                   "road z = 0), the first camera's, or z up with the road at -1.7 m and turned "
+                   "30 deg (default: %(default)s)")
+    p.add_argument("--road", choices=("given", "auto"), default="given",
+                   help="the scene's road in that frame, or estimated from the stream "
+                   "(default: %(default)s)")
+    p.add_argument("--camera-height", type=float,
+                   help="with --road auto: the camera's height, when known")
     p.add_argument("--additions", action="store_true",
                    help="also evaluate the paper's pipeline with each addition alone and all "
                         "together (additions.csv, a section of report.md)")
