@@ -44,7 +44,8 @@ CONFIGS = {
 
 @pytest.mark.parametrize("name", CONFIGS)
 @pytest.mark.parametrize("stage", ["flow_alone", "paper_pipeline", "default_pipeline",
-                                   "non_flow", "ray_lookup", "constraints", "segmentation"])
+                                   "non_flow", "default_non_flow", "ray_lookup", "constraints",
+                                   "segmentation"])
 def test_detect_stage(benchmark, frames, name, stage):
     fr, roi = frames
     g0, g1 = _gray(fr[0]), _gray(fr[3])
@@ -61,6 +62,12 @@ def test_detect_stage(benchmark, frames, name, stage):
     elif stage == "non_flow":  # everything detect() does besides the flow (paper pipeline)
         flow = paper._flow(g0, g1)
         benchmark(paper.detect_flow, flow, p0, p1, prev=g0)
+    elif stage == "default_non_flow":  # the same with Params() in a stream that has a scene model
+        det = fm.MotionDetector(CAM, params=fm.Params(**CONFIGS[name]), roi=roi)
+        flow = det.flow(g0, g1, p0, p1)
+        for _ in range(3):
+            det.detect_flow(flow, p0, p1, prev=g0, stream=True)
+        benchmark(det.detect_flow, flow, p0, p1, prev=g0, stream=True)
     else:
         flow = paper._flow(g0, g1)
         cells = grid_average(flow, 5)
@@ -74,7 +81,7 @@ def test_detect_stage(benchmark, frames, name, stage):
             rays1, _ = CAM.unproject(paper._centres + cells)
             res = constraints(paper._rays0, rays1, p0, p1, road=paper.road, params=paper.params)
             valid = res.valid & paper._cell_valid
-            benchmark(paper._assemble, flow, cells, res, valid)
+            benchmark(paper._assemble, flow, cells, res, res.likelihood, valid)
 
 
 @pytest.mark.benchmark(group="render-640x480")

@@ -138,3 +138,35 @@ def test_an_implausible_given_road_warns():
     with pytest.warns(UserWarning, match="on or under the road"):
         assert check_road(fm.Road(normal=(0, 0, 1), offset=0.5), poses)
     assert check_road(fm.Road(normal=(0, 0, 1), offset=-1.2), poses) == []
+
+
+# ---- any resolution --------------------------------------------------------------------------
+
+@pytest.mark.parametrize("width, height", [(512, 512), (640, 480), (1280, 966), (1920, 1080)])
+def test_defaults_scaled_to_the_camera_behave_alike_at_any_resolution(width, height):
+    """The same 190-degree lens at four sensor sizes: the scaled defaults see the crossing car
+    as one region of about the same angular size, and flag little else."""
+    scale = width / 640
+    cam = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 200.0 * scale, "fy": 200.0 * scale,
+                                    "cx": (width - 1) / 2, "cy": (height - 1) / 2,
+                                    "width": width, "height": height})
+    scene = synth.parse_scenario({
+        "name": "res", "frames": 2, "ego": {"speed_kmh": 5},
+        "camera": {"position": [2, 0, 1.0], "pitch_deg": 15},
+        "objects": [{"id": 1, "kind": "car", "category": "crossing", "start": [9, -5],
+                     "heading_deg": 90, "speed_kmh": 15}]})
+    f0, f1 = synth.render_frames(cam, scene, supersample=1)
+    roi = synth.Renderer(cam, scene, supersample=1).roi()  # without the ego vehicle's body
+    params = fm.Params(frame_gap=1).for_camera(cam)
+    assert params.grid == max(3, round(5 * scale))
+    det = fm.MotionDetector(cam, params=params, roi=roi).detect_flow(
+        np.nan_to_num(f1.flow), f0.pose, f1.pose)
+    moving = f1.moving > 0
+    ys, xs = np.nonzero(moving)
+    boxes = [r.bbox for r in det.regions
+             if r.bbox[0] <= np.median(xs) <= r.bbox[0] + r.bbox[2]
+             and r.bbox[1] <= np.median(ys) <= r.bbox[1] + r.bbox[3]]
+    assert len(boxes) == 1  # the car is one region, not a dozen boxes
+    assert (det.mask[moving] > 0).mean() > 0.6
+    static = ~moving & (roi > 0)
+    assert (det.mask[static] > 0).mean() < 0.03
