@@ -41,6 +41,7 @@ ADDITIONS = {
     "+ warp and scene prior": {"flow_prior": "warp", "scene_prior": True},
     "+ significance 3 sigma": {"significance": 3.0},
     "+ ground contact": {"ground_contact": True},
+    "+ growth 4 cells": {"grow": 4},
 }
 
 #: Ablation: weights (mu_e, mu_d, mu_h, mu_p) of each variant; "paper" is the configured Params.

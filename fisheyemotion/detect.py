@@ -27,6 +27,7 @@ from .flow import FlowEstimator, grid_average, grid_centres, grid_gather, grid_t
 from .frames import to_gray
 from .ground import GroundEstimator
 from .ground_contact import standing_regions
+from .grow import grow_regions
 from .params import Params
 from .prior import EgoFlowPrior, lands_on, static_scene_targets
 from .road import Road
@@ -381,8 +382,28 @@ class MotionDetector:
                                               min_parallax=TRIANGULATION_PARALLAX)
                 with np.errstate(invalid="ignore"):
                     self.scene.add(self._rays0, ranges, t0, valid & (likelihood < p.threshold))
+        if p.grow > 0 and not res.static_camera:
+            likelihood = self._grown(likelihood, valid, cell_flow, t0, t1)
         self._check_road(t0)
         return self._assemble(flow, cell_flow, res, likelihood, valid, stream=stream)
+
+    def _grown(self, likelihood, valid, cell_flow, t0, t1) -> NDArray:
+        """The likelihood with the cells that regions grow into (:mod:`fisheyemotion.grow`)
+        raised to just above the threshold."""
+        p = self.params
+        with np.errstate(invalid="ignore"):
+            moving = valid & (likelihood > p.threshold)
+        if not moving.any():
+            return likelihood
+        ranges = None
+        if self.scene is not None and len(self.scene):
+            ranges = self._scene_ranges_at_cells(t0)
+        targets, ok = static_scene_targets(self.camera, self._rays0, t0, t1,
+                                           self._prior_road(t0, t1), p.prior_distance, ranges)
+        residual = np.where(ok[..., None], self._centres + cell_flow - targets, np.nan)
+        grown = grow_regions(moving, residual, valid, steps=p.grow)
+        raised = np.nextafter(p.threshold, np.inf)
+        return np.where(grown & ~moving, np.fmax(likelihood, raised), likelihood)
 
     def _check_road(self, pose: NDArray) -> None:
         """Warn (once per detector) when a given road is implausible for the camera."""

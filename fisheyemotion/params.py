@@ -82,6 +82,10 @@ class Params:
         raw angles only.
     flow_sigma : float
         Pixels: the flow's error on a well-measured cell (the floor of the error model).
+    grow : int
+        Cells a detected region may grow by into neighbours whose residual flow (measured minus
+        the static scene's) is like the region's (:mod:`fisheyemotion.grow`): the object's flow
+        boundary becomes the region's. 0 disables it.
     ground_contact : bool
         Regions led by the anti-parallel term that stand on the road (the static range just
         below their lower edge is about their own) are static structure: their anti-parallel
@@ -164,6 +168,7 @@ class Params:
     significance: float = 3.0
     flow_sigma: float = 0.25
     ground_contact: bool = True
+    grow: int = 0
     contact_ratio: float = 1.05
     scene_prior: bool = True
     scene_memory: int = 3
@@ -214,7 +219,7 @@ class Params:
             raise ValueError("temporal_decay: expected a number in [0, 1), got "
                              f"{_short(self.temporal_decay)}")
         for name, low in (("grid", 1), ("min_area", 0), ("frame_gap", 1), ("persistence", 1),
-                          ("scene_memory", 1)):
+                          ("scene_memory", 1), ("grow", 0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {_short(v)}")
@@ -237,7 +242,7 @@ class Params:
         ``docs/evaluation.md``). The paper does not state its likelihood threshold; this uses
         0.005."""
         return cls(**{"flow_prior": "none", "scene_prior": False, "ground_contact": False,
-                      "significance": 0.0,
+                      "significance": 0.0, "grow": 0,
                       "fb_check": False,
                       "frame_gap": 1, "min_texture": 0.0,
                       "visibility_check": False, "threshold": 0.005, "temporal_decay": 0.0,

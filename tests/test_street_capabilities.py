@@ -203,3 +203,28 @@ def test_cell_sigma_grows_with_discordant_flow():
     s = cell_sigma(flow, 5, angle, floor=0.25)
     np.testing.assert_allclose(s[:2], 0.25 * 0.01, rtol=1e-6)
     assert (s[2:] > 5 * 0.25 * 0.01).all()
+
+
+# ---- growth to the object's extent -----------------------------------------------------------
+
+def test_regions_grow_over_their_objects_residual_and_stop_at_its_boundary():
+    from fisheyemotion.grow import grow_regions
+
+    residual = np.zeros((30, 40, 2))
+    residual[10:20, 10:25] = (6.0, 1.0)       # the object's own motion
+    residual[10:20, 25:30] = (-4.0, 0.0)      # another object beside it
+    moving = np.zeros((30, 40), bool)
+    moving[12:14, 12:15] = True               # only a few cells were flagged
+    valid = np.ones((30, 40), bool)
+    grown = grow_regions(moving, residual, valid, steps=20)
+    assert grown[10:20, 10:25].all()          # the whole object ...
+    assert not grown[:, 25:].any() and not grown[:10].any() and not grown[20:].any()  # ... only
+    few = grow_regions(moving, residual, valid, steps=1)
+    assert few.sum() == (moving | ndimage_dilate(moving)).sum()
+    assert not grow_regions(moving, residual, moving, steps=5)[~moving].any()  # only valid cells
+
+
+def ndimage_dilate(mask):
+    from scipy import ndimage
+
+    return ndimage.binary_dilation(mask, structure=np.ones((3, 3), bool))

@@ -1,0 +1,80 @@
+"""Grow detected regions to the extent of their object by its flow.
+
+The constraints flag the cells where a deviation is measured; the rest of a moving object often
+stays below the threshold (its lower part near the road, where the height and anti-parallel
+deviations vanish; its middle, where the flow is smooth). What the whole object shares is its
+own motion: the *residual* flow, measured flow minus the flow the static scene would have there
+(the ego prior's prediction, with the static-scene model's ranges). A region grows into a
+neighbouring cell, up to ``steps`` cells out, when that cell's residual is like the region's
+mean residual ``r``:
+
+    |residual - r| <= tolerance + relative |r|     and     |residual| >= |r| / 2
+
+so that a cell of static background (residual near 0) or of another object (another residual)
+stops the growth: the object's flow boundary is the region's boundary.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import ndimage
+from skimage.measure import label
+
+__all__ = ["grow_regions"]
+
+
+def grow_regions(moving: NDArray[np.bool_], residual: NDArray[np.float64],
+                 valid: NDArray[np.bool_], *, steps: int, tolerance: float = 2.0,
+                 relative: float = 0.5) -> NDArray[np.bool_]:
+    """Cells of the moving regions grown along their residual flow.
+
+    Parameters
+    ----------
+    moving : ndarray of bool, shape (rows, cols)
+        Cells above the threshold.
+    residual : ndarray, shape (rows, cols, 2)
+        Measured minus static-scene flow of each cell, pixels (NaN where unknown).
+    valid : ndarray of bool, shape (rows, cols)
+        Cells that may join.
+    steps : int
+        Rings of cells a region may grow by.
+    tolerance, relative : float
+        Pixels, and a fraction of the region's mean residual: how far a cell's residual may be
+        from the region's.
+
+    Returns
+    -------
+    ndarray of bool, shape (rows, cols)
+        ``moving`` and the cells grown into.
+    """
+    labels = label(moving, connectivity=2)
+    n = int(labels.max())
+    if n == 0 or steps <= 0:
+        return moving.copy()
+    res = np.nan_to_num(residual, nan=np.inf)
+    flat = labels.ravel()
+    count = np.maximum(np.bincount(flat, minlength=n + 1), 1)
+    finite = np.isfinite(res).all(axis=-1).ravel() & (flat > 0)
+    mean = np.zeros((n + 1, 2))
+    for i in range(2):
+        mean[:, i] = np.bincount(flat[finite], weights=res.reshape(-1, 2)[finite, i],
+                                 minlength=n + 1) / count
+    norm = np.linalg.norm(mean, axis=-1)
+    grown = labels.copy()
+    open_ = valid & np.isfinite(res).all(axis=-1)
+    for _ in range(steps):
+        near = ndimage.grey_dilation(grown, size=(3, 3), mode="constant", cval=0)
+        cand = (grown == 0) & (near > 0) & open_
+        if not cand.any():
+            break
+        lab = near[cand]
+        r = res[cand]
+        target = mean[lab]
+        ok = (np.linalg.norm(r - target, axis=-1) <= tolerance + relative * norm[lab]) & (
+            np.linalg.norm(r, axis=-1) >= 0.5 * norm[lab])
+        if not ok.any():
+            break
+        rows, cols = np.nonzero(cand)
+        grown[rows[ok], cols[ok]] = lab[ok]
+    return grown > 0
