@@ -86,9 +86,8 @@ def _poses_file(source: Path, given: str | None) -> Path | None:
         return Path(given)
     if not source.is_dir():
         return None
-    folder = source
-    candidates = [folder / "poses.txt"] if (folder / "poses.txt").is_file() else sorted(
-        folder.glob("poses*.csv"))
+    candidates = [source / "poses.txt"] if (source / "poses.txt").is_file() else sorted(
+        source.glob("poses*.csv"))
     return candidates[0] if len(candidates) == 1 else None
 
 

@@ -36,7 +36,7 @@ def to_gray(frame: object, name: str, *, size: tuple[int, int] | None = None) ->
             f"{name}: expected a {size[0]}x{size[1]} frame (the camera's size), "
             f"got {gray.shape[1]}x{gray.shape[0]}"
         )
-    # Always a copy for (H, W) input: streams keep frames, and a caller reusing its buffer must
-    # not change them.
-    return np.array(gray, dtype=np.uint8, order="C", copy=True) if gray is frame or \
-        gray.base is frame else np.ascontiguousarray(gray)
+    # Never the caller's memory: streams keep frames, and a caller reusing its buffer must not
+    # change them (cvtColor already made a new array).
+    return np.array(gray, order="C", copy=True) if gray.base is not None or gray is frame \
+        else gray

@@ -12,10 +12,7 @@ A fit is accepted when it is plausible:
 - at least ``min_points`` candidate points and ``min_inlier_share`` of them on the plane
   (within ``tolerance`` metres per metre of range);
 - the camera above it by ``min_height``..``max_height`` metres (``camera_height`` +-25 % when
-  given);
-- the plane is not steep: its normal within ``max_tilt`` of the camera's mean "down" direction
-  over the stream is not required (cameras are mounted at any angle), but the plane must lie
-  below the camera's centre along the normal that points to the camera.
+  given). The normal is not compared with the camera's axes: cameras are mounted at any angle.
 
 Before a plausible fit, the road is :meth:`fisheyemotion.Road.unknown`: the constraints that
 need a road (height, anti-parallel, ground contact) are off, the others work.

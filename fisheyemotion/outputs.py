@@ -64,12 +64,10 @@ def region_records(regions, camera: CameraModel, pose: np.ndarray, road: Road) -
             foot, ok = camera.unproject(np.array([x + (w - 1) / 2, y + h - 1], dtype=np.float64))
             if ok:
                 d = pose[:3, :3] @ foot
-                height = float(road.height(pose[:3, 3]))
-                down = float(d @ -road.up)
-                if height > 0 and down > 1e-6 and height / down < 200:
-                    hit = pose[:3, 3] + height / down * d
-                    below = pose[:3, 3] - height * road.up
-                    distance = float(np.linalg.norm(hit - below))
+                reach = float(road.ray_range(pose[:3, 3], d, min_down=1e-6))
+                if reach < 200:
+                    below = pose[:3, 3] - float(road.height(pose[:3, 3])) * road.up
+                    distance = float(np.linalg.norm(pose[:3, 3] + reach * d - below))
         rows.append({"label": r.label, "x": x, "y": y, "w": w, "h": h, "area": r.area,
                      "mean_likelihood": r.mean_likelihood, "u": r.centroid[0],
                      "v": r.centroid[1], "azimuth_deg": az, "elevation_deg": el,

@@ -55,11 +55,7 @@ def static_scene_targets(camera: CameraModel, rays: NDArray[np.float64], pose0: 
     """
     dirs = rays @ pose0[:3, :3].T
     centre0 = pose0[:3, 3]
-    height = float(road.height(centre0)) if road.known else 0.0
-    down = dirs @ -road.up
-    with np.errstate(invalid="ignore", divide="ignore"):
-        to_road = np.where((down > _HORIZON_SIN) & (height > 0), height / down, np.inf)
-    depth = np.minimum(to_road, distance)
+    depth = np.minimum(road.ray_range(centre0, dirs, min_down=_HORIZON_SIN), distance)
     if ranges is not None:
         with np.errstate(invalid="ignore"):
             depth = np.where(ranges < OCCLUDER_RATIO * depth, ranges, depth)

@@ -64,6 +64,18 @@ class Road:
         """Signed height above the road of world points ``(..., 3)``."""
         return np.asarray(points, dtype=np.float64) @ self.up - self.offset
 
+    def ray_range(self, origin: ArrayLike, dirs: ArrayLike, *,
+                  min_down: float = 0.0) -> NDArray[np.float64]:
+        """Metres along unit world directions ``dirs`` (..., 3) from ``origin`` (3,) to the
+        plane; ``inf`` for rays that do not point down by more than ``min_down`` (the sine of
+        their angle below the plane), for an origin not above the plane and for an unknown
+        road."""
+        dirs = np.asarray(dirs, dtype=np.float64)
+        height = float(self.height(origin)) if self.known else 0.0
+        down = dirs @ -self.up
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where((down > min_down) & (height > 0), height / down, np.inf)
+
     def transformed(self, transform: ArrayLike) -> Road:
         """The same physical plane after the world frame is moved by ``transform``
         (``new_from_old``, 4x4 rigid)."""
