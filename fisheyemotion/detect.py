@@ -25,7 +25,7 @@ from .calib.transforms import check_rigid
 from .constraints import ConstraintResult, constraints
 from .flow import FlowEstimator, grid_average, grid_centres, grid_gather, grid_transfer, grid_upsample
 from .frames import to_gray
-from .ground import GroundEstimator
+from .ground import GroundEstimator, level_up
 from .ground_contact import standing_regions
 from .grow import grow_regions
 from .params import Params
@@ -433,13 +433,7 @@ class MotionDetector:
         The constraints never see it."""
         if self.road.known or self.ground is None:
             return self.road
-        down = pose[:3, 1].copy()
-        travel = pose_b[:3, 3] - pose[:3, 3]
-        norm = np.linalg.norm(travel)
-        if norm > 1e-6:
-            t = travel / norm
-            down -= (down @ t) * t
-        up = -down / np.linalg.norm(down)
+        up = level_up(pose, pose_b)
         height = self.ground.camera_height or PROVISIONAL_HEIGHT
         return Road(normal=tuple(up), offset=float(up @ pose[:3, 3]) - height)
 

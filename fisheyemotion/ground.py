@@ -12,7 +12,9 @@ A fit is accepted when it is plausible:
 - at least ``min_points`` candidate points and ``min_inlier_share`` of them on the plane
   (within ``tolerance`` metres per metre of range);
 - the camera above it by ``min_height``..``max_height`` metres (``camera_height`` +-25 % when
-  given). The normal is not compared with the camera's axes: cameras are mounted at any angle.
+  given);
+- its normal within ``max_tilt`` (8 deg) of :func:`level_up`, the camera's up with its pitch
+  removed by the direction of travel (a vehicle camera's road normal, up to its roll).
 
 Before a plausible fit, the road is :meth:`fisheyemotion.Road.unknown`: the constraints that
 need a road (height, anti-parallel, ground contact) are off, the others work.
@@ -60,6 +62,19 @@ class PlaneModel:
         return np.abs(points @ self.normal - self.offset) / ranges
 
 
+def level_up(pose: NDArray, pose_next: NDArray) -> NDArray[np.float64]:
+    """The camera's "up" with its pitch removed: minus its image-down axis, with the direction of
+    travel (from ``pose`` to ``pose_next``) projected out. A vehicle moves parallel to its road,
+    so for a vehicle camera this is the road's normal up to the camera's roll."""
+    down = pose[:3, 1].copy()
+    travel = pose_next[:3, 3] - pose[:3, 3]
+    norm = np.linalg.norm(travel)
+    if norm > 1e-6:
+        t = travel / norm
+        down -= (down @ t) * t
+    return -down / np.linalg.norm(down)
+
+
 class GroundEstimator:
     """Fits the road plane to static world points seen below the camera.
 
@@ -78,7 +93,7 @@ class GroundEstimator:
     """
 
     def __init__(self, *, camera_height: float | None = None, min_points: int = 100,
-                 min_inlier_share: float = 0.2, tolerance: float = 0.02,
+                 min_inlier_share: float = 0.2, tolerance: float = 0.04,
                  min_height: float = 0.2, max_height: float = 5.0, seed: int = 0) -> None:
         if camera_height is not None and (not np.isfinite(camera_height) or camera_height <= 0):
             raise ValueError(f"camera_height: expected a positive number of metres, got "
@@ -95,6 +110,8 @@ class GroundEstimator:
         self._last: tuple[NDArray, NDArray] | None = None
         self._pairs = 0
         self.refit_every = 15
+        self.max_tilt = 8.0
+        self.early_pairs = 12
 
     def observe(self, camera, gray: NDArray[np.uint8], pose: NDArray, *,
                 mask: NDArray | None = None) -> Road | None:
@@ -137,12 +154,15 @@ class GroundEstimator:
         points = pose0[:3, 3] + lam[ok][:, None] * (r0[ok] @ pose0[:3, :3].T)
         self._points = (self._points + [points])[-12:]
         self._pairs += 1
-        if self.road is not None and self._pairs % self.refit_every:
+        # Refit with every pair while the point set is young, then now and then.
+        if self.road is not None and self._pairs > self.early_pairs \
+                and self._pairs % self.refit_every:
             return None
-        return self.fit(np.concatenate(self._points), pose0[:3, 3], pose0[:3, 1])
+        return self.fit(np.concatenate(self._points), pose0[:3, 3], pose0[:3, 1],
+                        expected_up=level_up(pose0, pose1))
 
     def fit(self, points: NDArray[np.float64], centre: NDArray[np.float64],
-            down: NDArray[np.float64]) -> Road | None:
+            down: NDArray[np.float64], *, expected_up: NDArray | None = None) -> Road | None:
         """Fit to world ``points`` (N, 3) around the camera centre ``centre``; ``down`` is the
         camera's rough down direction (its image's y axis, in the world), used only to choose
         the candidates below it. Returns the road when the fit is plausible (also kept in
@@ -169,6 +189,8 @@ class GroundEstimator:
             n, d, height = -n, -d, -height
         lo, hi = self.height_range
         if not lo <= height <= hi:
+            return None
+        if expected_up is not None and n @ expected_up < np.cos(np.radians(self.max_tilt)):
             return None
         self.road, self.inliers = Road(normal=tuple(n), offset=float(d)), int(inliers.sum())
         return self.road
