@@ -179,17 +179,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--additions", action="store_true",
                    help="also evaluate the paper's pipeline with each addition alone and all "
                         "together (additions.csv, a section of report.md)")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_eval)
 
     p = sub.add_parser("compare", help="the same scenarios through several camera models")
     p.add_argument("--calib", action="append", required=True, help="calibration file (repeat)")
     p.add_argument("--scenarios", help="comma-separated bundled scenario names (default: all)")
-    p.add_argument("--frames", type=int, default=10)
-    p.add_argument("--params", help="YAML/JSON file of Params")
-    p.add_argument("--out", required=True)
-    p.add_argument("--workers", type=int)
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--frames", type=int, default=10,
+                   help="frames rendered per scenario and camera (default: %(default)s)")
+    p.add_argument("--params", help="YAML/JSON file of Params, or 'paper'")
+    p.add_argument("--out", required=True, help="report folder")
+    p.add_argument("--workers", type=int, help="local processes (default: CPU count)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_compare)
 
     p = sub.add_parser("demo", help="render the bundled scenarios, detect, write a report")
@@ -199,6 +200,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="frames per open-road scenario (the streets keep their own 48)")
     p.add_argument("--scenarios", help="comma-separated scenario names (default: all)")
     p.add_argument("--flow", default="farneback,dis", help="comma-separated: farneback,dis")
-    p.add_argument("--workers", type=int)
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--workers", type=int, help="local processes (default: CPU count)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_demo)

@@ -53,8 +53,19 @@ def calib_files(data: Path) -> list[Path]:
 
 
 def cmd_calib(args: argparse.Namespace) -> int:
-    print(calibration_table([Path(p) for p in args.files]).to_string(index=False))
-    return 0
+    """Every file is read; the ones that fail are reported after the table (exit code 2)."""
+    good, failed = [], []
+    for name in args.files:
+        try:
+            calibration_table([Path(name)])
+            good.append(Path(name))
+        except ValueError as exc:
+            failed.append(str(exc))
+    if good:
+        print(calibration_table(good).to_string(index=False))
+    for message in failed:
+        print(f"fisheyemotion calib: error: {message}", file=sys.stderr)
+    return 2 if failed else 0
 
 
 # ---- detect ---------------------------------------------------------------------------------
@@ -246,12 +257,25 @@ def cmd_synth(args: argparse.Namespace) -> int:
     return 0
 
 
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("fisheyemotion")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
 def _camera_arg(text: str) -> int | str:
     return int(text) if text.isdigit() else text
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="fisheyemotion", description=__doc__)
+    parser = argparse.ArgumentParser(
+        prog="fisheyemotion",
+        description="Moving-object detection for moving fisheye cameras (spherical constraints, "
+                    "Mariotti & Hughes 2019). Errors are one line on stderr and exit code 2.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("detect", help="detect moving objects in a video, image folder, "
@@ -314,7 +338,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_synth)
 
     p = sub.add_parser("calib", help="print model, size and FOV of calibration files")
-    p.add_argument("files", nargs="+")
+    p.add_argument("files", nargs="+", help="calibration files (every one is read; failures are "
+                   "listed after the table)")
     p.set_defaults(func=cmd_calib)
 
     # Commands of packages built on the core (fisheyemotion.eval: eval, compare, demo) register

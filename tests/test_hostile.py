@@ -422,3 +422,13 @@ def test_a_camera_under_the_given_road_warns(frames):
                             fm.Params(frame_gap=1, flow="dis"))
     with pytest.warns(UserWarning, match="on or under"):
         det.detect(frames[0].image, frames[1].image, frames[0].pose, frames[1].pose)
+
+
+def test_cli_version_and_calib_reporting_every_file(capsys, calib_dir):
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0 and "fisheyemotion" in capsys.readouterr().out
+    code = main(["calib", str(calib_dir / "invalid" / "unknown-model-kalibr.yaml"),
+                 str(calib_dir / "opencv" / "tumvi_cam0_fisheye.yaml")])
+    out, err = capsys.readouterr()
+    assert code == 2 and "kannala_brandt" in out and "unknown-model-kalibr.yaml" in err
