@@ -361,27 +361,32 @@ class MotionDetector:
             valid &= self._textured_cells(gray)
         likelihood = res.likelihood
         sigma = None
-        if (p.significance > 0 or p.ground_contact) and not res.static_camera:
+        if (p.significance > 0 or (p.ground_contact and self.road.known)) \
+                and not res.static_camera:
             if self._pixel_angle is None:
                 self._pixel_angle = pixel_angle(self.camera, self._centres)
-            sigma = cell_sigma(flow, p.grid, self._pixel_angle, floor=p.flow_sigma)
+            sigma = cell_sigma(flow, p.grid, self._pixel_angle, floor=p.flow_sigma,
+                               mean=cell_flow)
         if p.significance > 0 and not res.static_camera:
             likelihood = self._with_significance(res, sigma, likelihood)
         keep_scene = stream and self.scene is not None
-        if (keep_scene or p.ground_contact) and not res.static_camera:
-            if p.ground_contact and self.road.known:  # every range counts, however little parallax
-                ranges, _ = triangulate_range(self._rays0, rays1, t0, t1, far=p.prior_distance)
-                parallax = np.linalg.norm(np.cross(self._rays0 @ t0[:3, :3].T,
-                                                   rays1 @ t1[:3, :3].T), axis=-1)
+        contact = p.ground_contact and self.road.known
+        if (keep_scene or contact) and not res.static_camera:
+            # One triangulation for both: every range counts for the contact test, however
+            # little parallax it has; the scene model keeps only well-conditioned ones.
+            ranges, _ = triangulate_range(self._rays0, rays1, t0, t1, far=p.prior_distance)
+            parallax = np.linalg.norm(np.cross(self._rays0 @ t0[:3, :3].T,
+                                               rays1 @ t1[:3, :3].T), axis=-1)
+            if contact:
                 with np.errstate(invalid="ignore", divide="ignore"):
                     range_error = sigma / parallax  # relative: d(lambda)/lambda
                 likelihood = self._explain_standing(res, likelihood, valid, ranges, range_error,
                                                     t0)
             if keep_scene:
-                ranges, _ = triangulate_range(self._rays0, rays1, t0, t1, far=p.prior_distance,
-                                              min_parallax=TRIANGULATION_PARALLAX)
                 with np.errstate(invalid="ignore"):
-                    self.scene.add(self._rays0, ranges, t0, valid & (likelihood < p.threshold))
+                    conditioned = parallax >= np.sin(TRIANGULATION_PARALLAX)
+                    self.scene.add(self._rays0, np.where(conditioned, ranges, np.nan), t0,
+                                   valid & (likelihood < p.threshold))
         if p.grow > 0 and not res.static_camera:
             likelihood = self._grown(likelihood, valid, cell_flow, t0, t1)
         self._check_road(t0)

@@ -48,7 +48,7 @@ def pixel_angle(camera: CameraModel, pixels: NDArray[np.float64]) -> NDArray[np.
 
 
 def cell_sigma(flow: NDArray[np.float32], grid: int, angle: NDArray[np.float64], *,
-               floor: float) -> NDArray[np.float64]:
+               floor: float, mean: NDArray | None = None) -> NDArray[np.float64]:
     """Angular error of each cell's mean flow.
 
     Parameters
@@ -61,13 +61,15 @@ def cell_sigma(flow: NDArray[np.float32], grid: int, angle: NDArray[np.float64],
         :func:`pixel_angle` at the cell centres.
     floor : float
         ``sigma_0``, pixels.
+    mean : ndarray, shape (rows, cols, 2), optional
+        The cells' mean flow, when the caller has it already.
 
     Returns
     -------
     ndarray, shape (rows, cols)
         Radians.
     """
-    mean = grid_average(flow, grid)
+    mean = grid_average(flow, grid) if mean is None else mean
     h, w = flow.shape[:2]
     # Deviations from the cell mean (E[f^2] - E[f]^2 would cancel at 100-px flows).
     dev = flow - grid_upsample(mean, grid, w, h)
