@@ -308,14 +308,16 @@ class CameraModel:
         return self._run_kernel(_polynomial_kernel.unproject_polynomial, q, 3, c, dc,
                                 self.theta_max, self.radius_max, self._theta_table)
 
-    def _run_kernel(self, kernel, points: NDArray[np.float64], out_dim: int, *args
+    def _run_kernel(self, kernel, points: NDArray[np.float64], out_dim: int, *args,
+                    affine: tuple[float, float, float, float] | None = None
                     ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
         """``kernel(points (N, d), fx, fy, cx, cy, *args, out (N, out_dim), valid (N,))`` over
-        any leading shape of ``points``."""
+        any leading shape of ``points``; ``affine`` replaces the model's pixel map (``(1, 1, 0,
+        0)``: normalised coordinates)."""
         flat = np.ascontiguousarray(points.reshape(-1, points.shape[-1]))
         out = np.empty((len(flat), out_dim))
         valid = np.empty(len(flat), dtype=bool)
-        kernel(flat, *self._affine(), *args, out, valid)
+        kernel(flat, *(self._affine() if affine is None else affine), *args, out, valid)
         lead = points.shape[:-1]
         return out.reshape(lead + (out_dim,)), valid.reshape(lead)
 

@@ -19,6 +19,8 @@ from ..registry import register
 #: about 1e-7 px at f = 300) below which a pixel counts as inverted.
 _NEWTON_STEPS = 20
 _INVERSE_TOLERANCE = 1e-12
+#: The pixel map of normalised coordinates: the radial kernels run before the non-radial stage.
+_NORMALISED = (1.0, 1.0, 0.0, 0.0)
 
 
 @register
@@ -143,8 +145,8 @@ class Fisheye624(CameraModel):
     def project(self, rays: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
         p = as_points(rays, 3, "rays")
         c, _ = self._polynomial_tuples
-        norm, valid = self._run_normalised(_polynomial_kernel.project_polynomial, p, 2, c,
-                                           self.theta_max)
+        norm, valid = self._run_kernel(_polynomial_kernel.project_polynomial, p, 2, c,
+                                       self.theta_max, affine=_NORMALISED)
         with np.errstate(all="ignore"):
             a, b = self._distort(norm[..., 0], norm[..., 1])
             pixels = np.stack([self.f * a + self.cx, self.f * b + self.cy], axis=-1)
@@ -162,9 +164,9 @@ class Fisheye624(CameraModel):
             a, b, ok = ad, bd, np.isfinite(ad) & np.isfinite(bd)
         norm = np.stack([np.where(ok, a, np.nan), np.where(ok, b, np.nan)], axis=-1)
         c, dc = self._polynomial_tuples
-        rays, valid = self._run_normalised(_polynomial_kernel.unproject_polynomial, norm, 3, c,
-                                           dc, self.theta_max, self.radius_max,
-                                           self._theta_table)
+        rays, valid = self._run_kernel(_polynomial_kernel.unproject_polynomial, norm, 3, c, dc,
+                                       self.theta_max, self.radius_max, self._theta_table,
+                                       affine=_NORMALISED)
         valid &= ok & self._inside_radius(q)
         rays[~valid] = np.nan
         return rays, valid
@@ -187,12 +189,3 @@ class Fisheye624(CameraModel):
         jac[~valid] = np.nan
         pixels[~valid] = np.nan
         return pixels, jac, valid
-
-    def _run_normalised(self, kernel, points, out_dim, *args):
-        flat = np.ascontiguousarray(points.reshape(-1, points.shape[-1]))
-        out = np.empty((len(flat), out_dim))
-        valid = np.empty(len(flat), dtype=bool)
-        kernel(flat, 1.0, 1.0, 0.0, 0.0, *args, out, valid)
-        lead = points.shape[:-1]
-        return out.reshape(lead + (out_dim,)), valid.reshape(lead)
-
