@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
 
 from .base import CameraModel, pixel_grid
 from .registry import model_class
@@ -35,6 +34,8 @@ def fit_model(reference: CameraModel, name: str, *, step: int = 8,
         Root-mean-square pixel error over the samples (rays the fit cannot project count with
         the image diagonal).
     """
+    from scipy.optimize import least_squares  # not imported with the package
+
     cls = model_class(name)
     grid = pixel_grid(reference.width, reference.height)[::step, ::step].reshape(-1, 2)
     rays, valid = reference.unproject(grid)

@@ -4,13 +4,16 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
-from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
 from .detect import CONSTRAINT_NAMES, Detection
+
+if TYPE_CHECKING:  # matplotlib is imported when a figure is drawn, not with the package
+    from matplotlib.figure import Figure
 
 
 def _bgr(frame: NDArray[np.uint8]) -> NDArray[np.uint8]:
@@ -87,6 +90,8 @@ def fig6(columns: Sequence[tuple[NDArray[np.uint8], Detection, str]], *,
     """The paper's Fig. 6: rows I-VII (flow, the four deviations, likelihood, segmentation) for
     one or more frame pairs ``(frame, detection, title)``."""
     n = len(columns)
+    from matplotlib.figure import Figure
+
     fig = Figure(figsize=(3.2 * n, 2.4 * 7), layout="constrained")
     axes = fig.subplots(7, n, squeeze=False)
     for c, (frame, det, title) in enumerate(columns):

@@ -26,7 +26,6 @@ import warnings
 
 import numpy as np
 from numpy.typing import NDArray
-from skimage.measure import ransac
 
 from .road import Road
 
@@ -171,6 +170,8 @@ class GroundEstimator:
         dist = np.linalg.norm(rel, axis=-1)
         with np.errstate(invalid="ignore", divide="ignore"):
             below = (rel @ down) / dist > 0.3  # at least ~17 deg below the camera's horizon
+        from skimage.measure import ransac  # imports scipy.optimize: only when a road is fitted
+
         keep = below & (dist < 25.0) & np.isfinite(dist)
         cand, rng = points[keep], dist[keep]
         if len(cand) < self.min_points:
