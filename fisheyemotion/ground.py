@@ -118,9 +118,8 @@ class GroundEstimator:
         observed into this one (consecutive frames keep the displacements small for the
         tracker), triangulate them with the poses, keep the points (the last few pairs) and try
         a fit (:meth:`fit`)."""
-        import cv2
-
         from .static_scene import TRIANGULATION_PARALLAX, triangulate_range
+        from .tracks import track_corners
 
         if self._last is not None and np.array_equal(self._last[1], pose):
             return None  # this frame was observed already
@@ -129,22 +128,14 @@ class GroundEstimator:
             return None
         (gray0, pose0), gray1, pose1 = last, gray, pose
 
-        h, w = gray0.shape
-        lower = np.zeros((h, w), np.uint8)
-        lower[h // 2:] = 255
+        h = gray0.shape[0]
+        lower = np.zeros(gray0.shape, bool)
+        lower[h // 2:] = True
         if mask is not None:
-            lower &= np.where(mask, 255, 0).astype(np.uint8)
-        corners = cv2.goodFeaturesToTrack(gray0, maxCorners=600, qualityLevel=0.005,
-                                          minDistance=7, mask=lower)
-        if corners is None or len(corners) < 10:
+            lower &= np.asarray(mask, dtype=bool)
+        u0, u1 = track_corners(gray0, gray1, mask=lower)
+        if len(u0) < 10:
             return None
-        lk = {"winSize": (21, 21), "maxLevel": 6,
-              "criteria": (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 40, 0.01)}
-        fwd, ok1, _ = cv2.calcOpticalFlowPyrLK(gray0, gray1, corners, None, **lk)
-        back, ok2, _ = cv2.calcOpticalFlowPyrLK(gray1, gray0, fwd, None, **lk)
-        good = (ok1[:, 0] == 1) & (ok2[:, 0] == 1) & (
-            np.linalg.norm(back - corners, axis=-1)[:, 0] < 0.5)
-        u0, u1 = corners[good, 0].astype(np.float64), fwd[good, 0].astype(np.float64)
         r0, v0 = camera.unproject(u0)
         r1, v1 = camera.unproject(u1)
         lam, ok = triangulate_range(r0, r1, pose0, pose1, far=100.0,
