@@ -124,8 +124,10 @@ def run_detect(frames, camera: calib.CameraModel, matcher, out: Path, *,
     for frame in tqdm(frames, desc="detect", total=total, disable=not progress, leave=False):
         name = Path(frame.name).stem if frame.name else f"{frame.index:06d}"
         try:
-            stamp, pose = matcher(frame.index, frame.name, frame.stamp)
+            stamp, pose = (None, None) if matcher is None else matcher(frame.index, frame.name,
+                                                                      frame.stamp)
             result = detector.apply(frame.image, pose)
+            pose = detector.last_pose
         except ValueError as exc:
             raise CliError(f"frame {frame.index} ({name}): {exc}") from None
         stamp = frame.stamp if frame.stamp is not None else stamp
@@ -189,17 +191,22 @@ def cmd_detect(args: argparse.Namespace) -> int:
                                        world_frame=args.world_frame, times=np.array(times))
     else:
         poses_path = _poses_file(source, args.poses)
-        if poses_path is None:
-            raise CliError("--poses: no pose file given or found in the input (poses.txt, "
-                           "poses*.csv)")
-        trajectory = read_poses(poses_path)
-    if args.poses_of == "rig":
+        trajectory = None if poses_path is None else read_poses(poses_path)
+    if trajectory is None:
+        print("fisheyemotion detect: no poses given or found in the input: estimating them from "
+              "the images (scale unknown: no road terms); written to OUT/poses.txt",
+              file=sys.stderr)
+        matcher = None
+        road_arg = Road.unknown()
+    elif args.poses_of == "rig":
         if extrinsic is None:
             raise CliError("--poses-of rig: the calibration file has no extrinsic for camera "
                            f"{args.camera!r}")
         trajectory = trajectory.compose(extrinsic)
-    matcher = PoseMatcher(trajectory, args.match, max_gap=args.max_dt,
-                          frames=len(frames) or None)
+    if trajectory is not None:
+        matcher = PoseMatcher(trajectory, args.match, max_gap=args.max_dt,
+                              frames=len(frames) or None)
+        road_arg = _parse_road(args.road)
     params = _detect_params(args, camera)
     roi_path = Path(args.roi) if args.roi else (source / "roi.png" if is_sequence else None)
     roi = None
@@ -207,8 +214,8 @@ def cmd_detect(args: argparse.Namespace) -> int:
         roi = cv2.imread(str(roi_path), cv2.IMREAD_GRAYSCALE)
         if roi is None:
             raise CliError(f"{roi_path}: cannot be read as an image")
-    road = _parse_road(args.road)
-    if isinstance(road, Road):
+    road = road_arg
+    if isinstance(road, Road) and trajectory is not None:
         from .ground import check_road
 
         for note in check_road(road, trajectory.poses, "--road"):
@@ -287,7 +294,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--camera", type=_camera_arg, default=0,
                    help="camera index or name in --calib (default: %(default)s)")
     p.add_argument("--poses", help="pose file: TUM, KITTI, EuRoC CSV, Aria CSV, MPS CSV, .npy or "
-                   ".npz (default: poses.txt or poses*.csv in INPUT)")
+                   ".npz (default: poses.txt or poses*.csv in INPUT; none: estimated from the "
+                   "images, scale unknown, written to OUT/poses.txt)")
     p.add_argument("--poses-of", choices=("camera", "rig"), default="camera",
                    help="the poses are of the camera, or of the calibration's reference frame "
                    "(IMU, device, vehicle), composed with the camera's extrinsic "

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 from .calib.base import CameraModel, pixel_grid
 from .calib.transforms import check_rigid
 from .constraints import ConstraintResult, constraints
+from .egomotion import PoseTracker
 from .flow import FlowEstimator, grid_average, grid_centres, grid_gather, grid_transfer, grid_upsample
 from .frames import to_gray
 from .ground import GroundEstimator, level_up
@@ -196,6 +197,9 @@ class MotionDetector:
         self.scene = (StaticScene(camera, memory=self.params.scene_memory)
                       if self.params.scene_prior and self._prior is not None else None)
         self._road_warned = False
+        self._tracker: PoseTracker | None = None
+        self._last_mask: NDArray[np.bool_] | None = None
+        self.last_pose: NDArray[np.float64] | None = None
         self._pixel_coords = None
         self._pixel_angle: NDArray[np.float64] | None = None
         self._view: NDArray[np.bool_] | None = None
@@ -219,26 +223,52 @@ class MotionDetector:
         t0, t1 = check_rigid(pose0, "pose0"), check_rigid(pose1, "pose1")
         return self._detect_gray(g0, g1, t0, t1)
 
-    def apply(self, frame: NDArray[np.uint8], pose: NDArray) -> Detection | None:
+    def apply(self, frame: NDArray[np.uint8], pose: NDArray | None = None) -> Detection | None:
         """Streaming: detect between the frame ``params.frame_gap`` calls ago and this one.
 
         Returns None until that many frames have been seen. Only the last ``frame_gap`` frames
-        and poses are kept.
+        and poses are kept. ``pose=None``: the pose is estimated from the images
+        (:mod:`fisheyemotion.egomotion`: the world is the first camera's frame, one unit of
+        translation per frame); the scale being unknown, the road terms are then off
+        (``Road.unknown()``, said once as a warning). :attr:`last_pose` is the pose used.
         """
         gray = to_gray(frame, "frame", size=self.size)
-        t = check_rigid(pose, "pose")
+        if pose is None:
+            t = self._estimated_pose(gray)
+        else:
+            if self._tracker is not None:
+                raise ValueError("pose: this stream estimates its poses (it was started "
+                                 "without them); reset() before giving poses")
+            t = check_rigid(pose, "pose")
+        self.last_pose = t
         self._observe_ground(gray, t)
         full = len(self._history) == self._history.maxlen
         prev, prev_pose = self._history[0] if full else (None, None)
         self._history.append((gray, t))
         if prev is None:
             return None
-        return self._detect_gray(prev, gray, prev_pose, t, stream=True)
+        result = self._detect_gray(prev, gray, prev_pose, t, stream=True)
+        self._last_mask = result.mask > 0
+        return result
+
+    def _estimated_pose(self, gray: NDArray[np.uint8]) -> NDArray[np.float64]:
+        if self._tracker is None:
+            if self._history:
+                raise ValueError("pose: this stream was given poses; reset() before leaving "
+                                 "them out")
+            self._tracker = PoseTracker(self.camera, mask=self._pixel_valid)
+            if self.road.known or self.ground is not None:
+                warnings.warn("pose: estimating poses from the images, whose scale is unknown: "
+                              "the road terms are off (Road.unknown())", stacklevel=3)
+                self.road, self.ground = Road.unknown(), None
+        return self._tracker(gray, self._last_mask)
 
     def reset(self) -> None:
-        """Forget the stream's previous frames and its temporal state."""
+        """Forget the stream's previous frames, its temporal state, its scene model and its
+        estimated poses."""
         self._history.clear()
         self._temporal = None
+        self._tracker, self._last_mask, self.last_pose = None, None, None
         if self.scene is not None:
             self.scene.clear()
 

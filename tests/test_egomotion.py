@@ -1,0 +1,108 @@
+"""Ego-motion from the images: relative poses against the rendered truth, streams and the CLI
+without poses."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import fisheyemotion as fm
+from fisheyemotion import synth
+from fisheyemotion.cli import main
+from fisheyemotion.egomotion import PoseTracker, relative_pose
+
+from .cameras import TUMVI_KB
+from .scenes import camera_pose, moved, random_rotation, rays_of
+
+CAM = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 150.0, "fy": 150.0, "cx": 239.5, "cy": 179.5,
+                                "width": 480, "height": 360})
+SCENE = synth.parse_scenario({
+    "name": "ego", "frames": 6, "ego": {"speed_kmh": 25, "yaw_rate_deg_s": 8},
+    "camera": {"position": [2, 0, 1.0], "pitch_deg": 12},
+    "static": [{"id": 20, "kind": "building", "center": [18, 9], "size": [20, 6, 8]},
+               {"id": 21, "kind": "building", "center": [20, -10], "size": [20, 6, 8],
+                "texture": "camera"}],
+    "objects": [{"id": 1, "kind": "car", "category": "crossing", "start": [9, -4],
+                 "heading_deg": 90, "speed_kmh": 15}]})
+
+
+def _angle(r):
+    return np.degrees(np.arccos(np.clip((np.trace(r) - 1) / 2, -1, 1)))
+
+
+def test_relative_pose_of_exact_rays_is_exact():
+    rng = np.random.default_rng(2)
+    pose0 = camera_pose(rng, height=1.0)
+    pose1 = moved(pose0, [0.8, 0.1, 0.0], yaw_deg=3.0)
+    points = pose0[:3, 3] + rng.uniform([2, -8, -0.9], [20, 8, 4], size=(200, 3))
+    transform, inliers = relative_pose(rays_of(points, pose0), rays_of(points, pose1))
+    truth = np.linalg.inv(pose1) @ pose0
+    assert inliers.mean() > 0.5
+    assert _angle(truth[:3, :3].T @ transform[:3, :3]) < 1e-4
+    t = truth[:3, 3] / np.linalg.norm(truth[:3, 3])
+    assert np.degrees(np.arccos(np.clip(t @ transform[:3, 3], -1, 1))) < 1e-3
+
+
+def test_rays_beyond_the_pinhole_range_are_left_out_not_wrong():
+    rng = np.random.default_rng(3)
+    r = random_rotation(rng)
+    rays = rng.normal(size=(50, 3))
+    rays[:, 2] = -np.abs(rays[:, 2])  # all behind the camera
+    rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
+    transform, inliers = relative_pose(rays, rays @ r.T)
+    assert transform is None and not inliers.any()
+
+
+@pytest.fixture(scope="module")
+def frames():
+    return synth.render_frames(CAM, SCENE, supersample=1)
+
+
+def test_tracked_poses_match_the_rendered_trajectory(frames):
+    roi = synth.Renderer(CAM, SCENE, supersample=1).roi() > 0
+    tracker = PoseTracker(CAM, mask=roi)
+    est = [tracker(np.ascontiguousarray(f.image[..., 1])) for f in frames]
+    rot, direction = [], []
+    for k in range(1, len(frames)):
+        true = np.linalg.inv(frames[k].pose) @ frames[k - 1].pose
+        got = np.linalg.inv(est[k]) @ est[k - 1]
+        rot.append(_angle(true[:3, :3].T @ got[:3, :3]))
+        t, g = true[:3, 3] / np.linalg.norm(true[:3, 3]), got[:3, 3]
+        direction.append(np.degrees(np.arccos(np.clip(t @ g, -1, 1))))
+    # Turning at 8 deg/s with a car crossing: rotation within a tenth of a degree, the direction
+    # of travel within a couple of degrees.
+    assert np.median(rot) < 0.08 and max(rot) < 0.2
+    assert np.median(direction) < 2.5 and max(direction) < 4.0
+
+
+def test_a_stream_without_poses_does_as_well_as_with_the_true_ones(frames):
+    roi = synth.Renderer(CAM, SCENE, supersample=1).roi()
+    truth, static = frames[-1].moving > 0, (frames[-1].moving == 0) & (roi > 0)
+    scores = {}
+    for mode in ("true", "estimated"):
+        det = fm.MotionDetector(CAM, fm.Road.unknown(), fm.Params(frame_gap=1), roi=roi)
+        results = [det.apply(f.image, f.pose if mode == "true" else None) for f in frames]
+        assert results[0] is None and det.last_pose is not None
+        last = results[-1]
+        scores[mode] = ((last.mask[truth] > 0).mean(), (last.mask[static] > 0).mean())
+    assert scores["estimated"][0] > 0.3  # the crossing car
+    assert scores["estimated"][0] > scores["true"][0] - 0.1
+    assert scores["estimated"][1] < scores["true"][1] + 0.03
+    with pytest.raises(ValueError, match="estimates its poses"):
+        det.apply(frames[0].image, frames[0].pose)
+
+
+def test_the_cli_without_poses_estimates_and_writes_them(tmp_path, frames):
+    import cv2
+
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for k, f in enumerate(frames):
+        cv2.imwrite(str(folder / f"{k:06d}.png"), f.image)
+    fm.calib.save_opencv(CAM, tmp_path / "calib.yaml")
+    (tmp_path / "p.yaml").write_text("frame_gap: 1\n")
+    assert main(["detect", str(folder), "--calib", str(tmp_path / "calib.yaml"), "--out",
+                 str(tmp_path / "out"), "--quiet", "--params", str(tmp_path / "p.yaml")]) == 0
+    poses = fm.poses.read_poses(tmp_path / "out" / "poses.txt").poses
+    assert len(poses) == len(frames)
+    np.testing.assert_allclose(poses[0], np.eye(4))
