@@ -198,6 +198,8 @@ class MotionDetector:
                       if self.params.scene_prior and self._prior is not None else None)
         self._road_warned = False
         self._tracker: PoseTracker | None = None
+        self._refiner: PoseTracker | None = None
+        self._refine_state: tuple[NDArray, NDArray] | None = None
         self._last_mask: NDArray[np.bool_] | None = None
         self.last_pose: NDArray[np.float64] | None = None
         self._pixel_coords = None
@@ -240,6 +242,8 @@ class MotionDetector:
                 raise ValueError("pose: this stream estimates its poses (it was started "
                                  "without them); reset() before giving poses")
             t = check_rigid(pose, "pose")
+            if self.params.pose_refinement != "off":
+                t = self._refined(gray, t)
         self.last_pose = t
         self._observe_ground(gray, t)
         full = len(self._history) == self._history.maxlen
@@ -250,6 +254,29 @@ class MotionDetector:
         result = self._detect_gray(prev, gray, prev_pose, t, stream=True)
         self._last_mask = result.mask > 0
         return result
+
+    def _refined(self, gray: NDArray[np.uint8], pose: NDArray) -> NDArray[np.float64]:
+        """The given pose with its rotation relative to the previous frame's (refined) pose
+        replaced by the images' where ``params.pose_refinement`` says so."""
+        if self._refiner is None:
+            self._refiner = PoseTracker(self.camera, mask=self._pixel_valid)
+        given_before, refined_before = self._refine_state or (None, None)
+        estimate = self._refiner.step(gray, self._last_mask)
+        out = pose
+        if estimate is not None and given_before is not None:
+            # cam_now_from_cam_before of the given poses, and of the images.
+            given = (np.linalg.inv(pose) @ given_before)[:3, :3]
+            angle = np.degrees(np.arccos(np.clip((np.trace(given.T @ estimate[:3, :3]) - 1) / 2,
+                                                 -1, 1)))
+            if self.params.pose_refinement == "on" or angle > self.params.refine_tolerance:
+                out = pose.copy()
+                out[:3, :3] = refined_before[:3, :3] @ estimate[:3, :3].T
+        elif refined_before is not None:
+            # No estimate: carry the correction made so far.
+            out = pose.copy()
+            out[:3, :3] = refined_before[:3, :3] @ given_before[:3, :3].T @ pose[:3, :3]
+        self._refine_state = (pose, out)
+        return out
 
     def _estimated_pose(self, gray: NDArray[np.uint8]) -> NDArray[np.float64]:
         if self._tracker is None:
@@ -269,6 +296,7 @@ class MotionDetector:
         self._history.clear()
         self._temporal = None
         self._tracker, self._last_mask, self.last_pose = None, None, None
+        self._refiner, self._refine_state = None, None
         if self.scene is not None:
             self.scene.clear()
 

@@ -82,31 +82,38 @@ class PoseTracker:
 
     def __init__(self, camera: CameraModel, *, step: float = 1.0,
                  mask: NDArray | None = None) -> None:
-        self.camera, self.step, self.mask = camera, float(step), mask
+        self.camera, self.step_length, self.mask = camera, float(step), mask
         self._last: NDArray[np.uint8] | None = None
         self.pose = np.eye(4)
         self.inlier_ratio = math.nan
 
+    def step(self, gray: NDArray[np.uint8], exclude: NDArray[np.bool_] | None = None
+             ) -> NDArray[np.float64] | None:
+        """``cam_now_from_cam_before`` (unit translation) between the previous frame and this
+        one, or None (the first frame, too little motion, no model). ``exclude`` (H, W): pixels
+        of the previous frame to leave out (what the detector found moving there)."""
+        last, self._last = self._last, gray.copy()
+        if last is None:
+            return None
+        mask = self.mask if exclude is None else (
+            (np.ones(gray.shape, bool) if self.mask is None else self.mask) & ~exclude)
+        u0, u1 = track_corners(last, gray, mask=mask, corners=800)
+        r0, ok0 = self.camera.unproject(u0)
+        r1, ok1 = self.camera.unproject(u1)
+        ok = ok0 & ok1
+        moved = np.linalg.norm(u1 - u0, axis=-1)
+        if ok.sum() < 8 or np.median(moved[ok]) <= 0.3:  # a still camera has no baseline
+            return None
+        transform, inliers = relative_pose(r0[ok], r1[ok])
+        self.inlier_ratio = float(inliers.mean())
+        return transform
+
     def __call__(self, gray: NDArray[np.uint8],
                  exclude: NDArray[np.bool_] | None = None) -> NDArray[np.float64]:
-        """The pose of this frame. ``exclude`` (H, W): pixels of the previous frame to leave out
-        (what the detector found moving there)."""
-        if self._last is not None:
-            mask = self.mask if exclude is None else (
-                (np.ones(gray.shape, bool) if self.mask is None else self.mask) & ~exclude)
-            u0, u1 = track_corners(self._last, gray, mask=mask, corners=800)
-            r0, ok0 = self.camera.unproject(u0)
-            r1, ok1 = self.camera.unproject(u1)
-            ok = ok0 & ok1
-            moved = np.linalg.norm(u1 - u0, axis=-1)
-            transform = None
-            if ok.sum() >= 8 and np.median(moved[ok]) > 0.3:  # a still camera has no baseline
-                transform, inliers = relative_pose(r0[ok], r1[ok])
-                self.inlier_ratio = float(inliers.mean())
-            if transform is None:  # no usable motion: the camera is taken to stand still
-                transform = np.eye(4)
-            else:
-                transform[:3, 3] *= self.step
+        """The pose of this frame (see :meth:`step`; no usable motion: the camera is taken to
+        stand still)."""
+        transform = self.step(gray, exclude)
+        if transform is not None:
+            transform[:3, 3] *= self.step_length
             self.pose = self.pose @ np.linalg.inv(transform)
-        self._last = gray.copy()
         return self.pose.copy()

@@ -14,6 +14,7 @@ import numpy as np
 FLOW_METHODS = ("farneback", "dis")
 DIS_PRESETS = ("ultrafast", "fast", "medium")
 LAMBDA_P_MODES = ("constant", "adaptive")
+POSE_REFINEMENTS = ("off", "on", "auto")
 FLOW_PRIORS = ("none", "ego", "warp")
 
 #: Radians per pixel at the image centre of the cameras the defaults were chosen on (200 px/rad).
@@ -82,6 +83,14 @@ class Params:
         raw angles only.
     flow_sigma : float
         Pixels: the flow's error on a well-measured cell (the floor of the error model).
+    pose_refinement : {'off', 'on', 'auto'}
+        Streams with given poses: the rotation between consecutive frames is also estimated from
+        the images (:mod:`fisheyemotion.egomotion`); ``on`` always uses it, ``auto`` where it
+        disagrees with the given poses by more than ``refine_tolerance`` degrees (odometry or a
+        loosely synchronised IMU: every tenth of a degree of rotation error is a flow error
+        everywhere). Positions stay as given.
+    refine_tolerance : float
+        Degrees, for ``pose_refinement='auto'``.
     grow : int
         Cells a detected region may grow by into neighbours whose residual flow (measured minus
         the static scene's) is like the region's (:mod:`fisheyemotion.grow`): the object's flow
@@ -169,6 +178,8 @@ class Params:
     flow_sigma: float = 0.25
     ground_contact: bool = True
     grow: int = 0
+    pose_refinement: str = "off"
+    refine_tolerance: float = 0.1
     contact_ratio: float = 1.05
     scene_prior: bool = True
     scene_memory: int = 3
@@ -199,7 +210,7 @@ class Params:
         for name in ("lambda_h", "lambda_p", "lambda_p_ratio", "min_baseline", "epipole_margin",
                      "threshold", "saturation", "fb_tolerance", "fb_relative", "min_texture",
                      "min_parallax", "seed_threshold", "contact_ratio",
-                     "significance", "flow_sigma"):
+                     "significance", "flow_sigma", "refine_tolerance"):
             v = getattr(self, name)
             if not _finite(v) or v < 0:
                 raise ValueError(f"{name}: expected a finite number >= 0, got {_short(v)}")
@@ -211,7 +222,8 @@ class Params:
         if self.saturation <= 0:
             raise ValueError(f"saturation: expected > 0, got {self.saturation!r}")
         for name, options in (("lambda_p_mode", LAMBDA_P_MODES), ("flow", FLOW_METHODS),
-                              ("dis_preset", DIS_PRESETS), ("flow_prior", FLOW_PRIORS)):
+                              ("dis_preset", DIS_PRESETS), ("flow_prior", FLOW_PRIORS),
+                              ("pose_refinement", POSE_REFINEMENTS)):
             if getattr(self, name) not in options:
                 raise ValueError(f"{name}: expected one of {', '.join(options)}, got "
                                  f"{_short(getattr(self, name))}")

@@ -106,3 +106,28 @@ def test_the_cli_without_poses_estimates_and_writes_them(tmp_path, frames):
     poses = fm.poses.read_poses(tmp_path / "out" / "poses.txt").poses
     assert len(poses) == len(frames)
     np.testing.assert_allclose(poses[0], np.eye(4))
+
+
+def test_pose_refinement_repairs_noisy_rotations(frames):
+    from .scenes import rotation
+
+    roi = synth.Renderer(CAM, SCENE, supersample=1).roi()
+    static = (frames[-1].moving == 0) & (roi > 0)
+    rng = np.random.default_rng(5)
+    noisy = []
+    for f in frames:  # 0.6 deg of rotation error per frame, as from a loose IMU
+        p = f.pose.copy()
+        p[:3, :3] = p[:3, :3] @ rotation(rng.normal(size=3), np.radians(0.6))
+        noisy.append(p)
+    flagged = {}
+    for name, mode, poses in (("true", "off", [f.pose for f in frames]),
+                              ("noisy", "off", noisy), ("refined", "auto", noisy)):
+        det = fm.MotionDetector(CAM, fm.Road(), fm.Params(frame_gap=1, pose_refinement=mode),
+                                roi=roi)
+        for f, p in zip(frames, poses, strict=True):
+            last = det.apply(f.image, p)
+        flagged[name] = (last.mask[static] > 0).mean()
+    # Measured: 1.4 % of static pixels flagged with the true poses, 6.3 % with the noisy ones,
+    # 1.9 % with the noisy ones refined.
+    assert flagged["noisy"] > flagged["true"] + 0.03  # the noise costs false alarms ...
+    assert flagged["refined"] < flagged["true"] + 0.01  # ... which the refinement removes
