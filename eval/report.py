@@ -241,6 +241,54 @@ def false_positive_table(results: list[SequenceResult]) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def markdown_to_html(lines: list[str], images: dict[str, bytes]) -> str:
+    """The report's markdown as self-contained HTML: headings, paragraphs, lists, pipe tables
+    (scrollable when wide), code blocks and figures embedded as data URIs. Only the markdown this
+    module writes is handled, so the HTML report says everything ``report.md`` says."""
+    out, i = [], 0
+    while i < len(lines):
+        line = lines[i]
+        if line.startswith("```"):
+            j = i + 1
+            while j < len(lines) and not lines[j].startswith("```"):
+                j += 1
+            out.append("<pre>" + html.escape("\n".join(lines[i + 1:j])) + "</pre>")
+            i = j + 1
+            continue
+        if line.startswith("|"):
+            rows = []
+            while i < len(lines) and lines[i].startswith("|"):
+                cells = [c.strip() for c in lines[i].strip().strip("|").split("|")]
+                if not all(set(c) <= set("-: ") for c in cells):
+                    rows.append(cells)
+                i += 1
+            head = "".join(f"<th>{html.escape(c)}</th>" for c in rows[0])
+            body = "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>"
+                           for r in rows[1:])
+            out.append(f"<div class='wide'><table><tr>{head}</tr>{body}</table></div>")
+            continue
+        if line.startswith("- "):
+            items = []
+            while i < len(lines) and lines[i].startswith("- "):
+                items.append(f"<li>{html.escape(lines[i][2:])}</li>")
+                i += 1
+            out.append("<ul>" + "".join(items) + "</ul>")
+            continue
+        if line.startswith("!["):
+            name = line[line.index("(") + 1:-1]
+            b64 = base64.b64encode(images[name]).decode()
+            out.append(f'<figure><img alt="{html.escape(name)}" '
+                       f'src="data:image/png;base64,{b64}"><figcaption>{html.escape(name)}'
+                       "</figcaption></figure>")
+        elif line.startswith("#"):
+            level = len(line) - len(line.lstrip("#"))
+            out.append(f"<h{level}>{html.escape(line[level:].strip())}</h{level}>")
+        elif line.strip():
+            out.append(f"<p>{html.escape(line)}</p>")
+        i += 1
+    return "\n".join(out)
+
+
 def _png(fig: Figure, path: Path) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
@@ -313,20 +361,12 @@ def write_report(results: list[SequenceResult], out: str | Path, params: Params,
     if commands:
         md += ["", "## Reproduce", "", "```sh", *commands, "```"]
     (out / "report.md").write_text("\n".join(md) + "\n")
-    body = []
-    for line in md:
-        if line.startswith("!["):
-            name = line[line.index("(") + 1: -1]
-            b64 = base64.b64encode(images[name]).decode()
-            body.append(f'<p><img alt="{name}" src="data:image/png;base64,{b64}"></p>')
-    tables_html = "".join(t.to_html(index=False, float_format=lambda v: f"{v:.2f}")
-                          for t in (wide, groups, fps, abl, *(() if real is None else (real[0],))))
-    notes_html = "".join(f"<li>{html.escape(n)}</li>" for n in notes) or "<li>none</li>"
     page = (f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
-            "</title><style>body{font-family:sans-serif;max-width:1100px;margin:auto}"
-            "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 6px}"
-            f"img{{max-width:100%}}</style></head><body><h1>{html.escape(title)}</h1>"
-            f"<h2>Table 2 and ablation</h2>{tables_html}<h2>Below the paper</h2><ul>{notes_html}</ul>"
-            f"<h2>Figures</h2>{''.join(body)}</body></html>")
+            "</title><style>body{font-family:sans-serif;max-width:1200px;margin:auto;"
+            "padding:0 1em}table{border-collapse:collapse;margin:0.5em 0;font-size:90%}"
+            "td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}"
+            "th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}"
+            ".wide{overflow-x:auto}img{max-width:100%}pre{background:#f6f6f6;padding:0.5em}"
+            "</style></head><body>" + markdown_to_html(md, images) + "</body></html>")
     (out / "report.html").write_text(page)
     return out / "report.html"

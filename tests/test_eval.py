@@ -133,6 +133,16 @@ def test_end_to_end_report(sequences, tmp_path):
         assert (tmp_path / "report" / name).exists(), name
     html = report.read_text()
     assert "data:image/png;base64," in html and "<img src=\"" not in html
+    # The HTML says everything report.md says: every heading, every table, every figure.
+    md = (tmp_path / "report" / "report.md").read_text()
+    import re
+
+    for heading in re.findall(r"^#+ (.+)$", md, re.M):
+        assert heading.replace("'", "&#x27;") in html, heading
+    assert html.count("<table") == len(re.findall(r"^\|[-:| ]+\|$", md, re.M))
+    for name in re.findall(r"!\[[^]]*\]\(([^)]+)\)", md):
+        assert f'alt="{name}"' in html and (tmp_path / "report" / name).exists()
+    assert "src=\"http" not in html and "href=\"http" not in html  # self-contained
     wide = pd.read_csv(tmp_path / "report" / "table2.csv")
     assert list(wide.category) == ["crossing", "overtaking", "preceding", "approaching",
                                    "static", "false positives"]
