@@ -1,0 +1,107 @@
+"""The supporting measurements quoted in docs/geometry.md, from the demo's sequences.
+
+    make demo                       # renders data/generated/demo/sequences
+    .venv/bin/python docs/measurements.py
+
+Prints: the flow error on static structure with and without the static-scene model, the share
+of cells above 3 sigma in the height term per surface, and how fast and how well the road is
+estimated in the first camera's frame.
+"""
+
+from __future__ import annotations
+
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+import fisheyemotion as fm
+from fisheyemotion.frames import to_gray
+from fisheyemotion.sequence import Sequence
+from fisheyemotion.significance import cell_sigma, pixel_angle
+from fisheyemotion.synth import Renderer, load_scenario
+
+SEQUENCES = Path(__file__).resolve().parents[1] / "data" / "generated" / "demo" / "sequences"
+
+
+def _grays(seq: Sequence) -> list[np.ndarray]:
+    return [to_gray(seq.frame(k), "frame") for k in range(len(seq))]
+
+
+def scene_prior_flow_error(name: str = "street_kb", frames: int = 30) -> None:
+    """Median flow error (px) on static boxes (buildings, walls, parked cars, poles) against
+    the exact flow, with the road/far-field prior alone and with the static-scene model."""
+    seq = Sequence(SEQUENCES / name)
+    renderer = Renderer(seq.camera, load_scenario(seq.path / "scenario.yaml"), supersample=1)
+    grays = _grays(seq)
+    for scene_prior in (False, True):
+        det = fm.MotionDetector(seq.camera, params=fm.Params(scene_prior=scene_prior),
+                                roi=seq.roi())
+        errors = []
+        for k in range(3, frames):
+            flow = det.flow(grays[k - 3], grays[k], seq.poses[k - 3], seq.poses[k])
+            det.detect_flow(flow, seq.poses[k - 3], seq.poses[k], prev=grays[k - 3], stream=True)
+            exact = renderer.flow(k, gap=3)
+            ids = seq.ids(k - 3)
+            static = (ids > 0) & (ids < 65535) & (seq.mask(k - 3) == 0) & np.isfinite(exact).all(-1)
+            errors.append(np.median(np.linalg.norm(flow - exact, axis=-1)[static]))
+        print(f"{name}: flow error on static structure, scene model {'on ' if scene_prior else 'off'}:"
+              f" median per frame {np.percentile(errors, 10):.2f}-{np.percentile(errors, 90):.2f} px "
+              f"(10th-90th percentile), last 10 frames {np.median(errors[-10:]):.2f} px")
+
+
+def height_significance(name: str = "street_kb", preceding_id: int = 2) -> None:
+    """Share of cells whose height deviation exceeds 3 flow-error sigmas, per surface."""
+    seq = Sequence(SEQUENCES / name)
+    cam = seq.camera
+    det = fm.MotionDetector(cam, roi=seq.roi())
+    angle = pixel_angle(cam, det._centres)
+    grays = _grays(seq)
+    counts = {"preceding car": [0, 0], "static objects": [0, 0], "road": [0, 0]}
+    for k in range(3, len(seq)):
+        flow = det.flow(grays[k - 3], grays[k], seq.poses[k - 3], seq.poses[k])
+        result = det.detect_flow(flow, seq.poses[k - 3], seq.poses[k], prev=grays[k - 3],
+                                 stream=True)
+        rays1, _ = cam.unproject(det._centres + result.grid.flow)
+        res = fm.constraints(det._rays0, rays1, seq.poses[k - 3], seq.poses[k], params=det.params)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            z = res.height / cell_sigma(flow, det.params.grid, angle, floor=det.params.flow_sigma)
+        ids = seq.ids(k - 3)[2::5, 2::5][: z.shape[0], : z.shape[1]]
+        valid = result.grid.valid
+        for key, sel in (("preceding car", ids == preceding_id),
+                         ("static objects", (ids >= 20) & (ids < 65535)), ("road", ids == 0)):
+            m = valid & sel
+            counts[key][0] += int((z[m] > 3).sum())
+            counts[key][1] += int(m.sum())
+    for key, (above, total) in counts.items():
+        print(f"{name}: height deviation above 3 sigma: {key} {100 * above / max(total, 1):.2f} % "
+              f"of {total} cells")
+
+
+def road_estimates(names=("crossing", "highway", "preceding", "curve", "parking_lot",
+                          "approaching", "street_kb", "street_heldout_ds")) -> None:
+    """Frames until the road is found, and the first fit's errors, in the first camera's frame."""
+    for name in names:
+        seq = Sequence(SEQUENCES / name)
+        new_from_scene = np.linalg.inv(seq.poses[0])
+        truth = fm.Road().transformed(new_from_scene)
+        det = fm.MotionDetector(seq.camera, "auto", roi=seq.roi())
+        for k in range(len(seq)):
+            det.apply(seq.frame(k), new_from_scene @ seq.poses[k])
+            if det.road.known:
+                tilt = np.degrees(np.arccos(np.clip(det.road.up @ truth.up, -1, 1)))
+                print(f"{name}: road found after {k} frames, {tilt:.2f} deg and "
+                      f"{abs(det.road.offset - truth.offset) * 100:.1f} cm off")
+                break
+        else:
+            print(f"{name}: no road found in {len(seq)} frames")
+
+
+if __name__ == "__main__":
+    if not SEQUENCES.is_dir():
+        sys.exit(f"{SEQUENCES}: run 'make demo' first")
+    warnings.simplefilter("ignore")
+    scene_prior_flow_error()
+    height_significance()
+    road_estimates()
