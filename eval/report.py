@@ -97,15 +97,24 @@ def fig_table2(wide: pd.DataFrame, flows: list[str]) -> Figure:
     cats = list(wide.category)
     x = np.arange(len(cats))
     width = 0.8 / (1 + len(flows))
-    for ax, metric, title in ((axes[0], "detection", "Detection rate (FP: frames)"),
-                              (axes[1], "coverage", "Coverage rate (FP: static pixels)")):
-        ax.bar(x, wide[f"paper_{metric}"], width, label="paper", color="0.6")
-        for i, f in enumerate(flows):
-            ax.bar(x + (i + 1) * width, wide[f"{f}_{metric}"], width, label=f)
-        ax.set_xticks(x + width * len(flows) / 2, [c.replace(" ", "\n") for c in cats], fontsize=8)
+    worse = np.array([c == "false positives" for c in cats])
+    for ax, metric, title, ylabel in (
+            (axes[0], "detection", "Detection rate per category", "share of object-frames"),
+            (axes[1], "coverage", "Coverage rate per category", "mean covered fraction")):
+        for i, (label, color) in enumerate([("paper", "0.6")] + [(f, None) for f in flows]):
+            column = f"{'paper' if label == 'paper' else label}_{metric}"
+            bars = ax.bar(x + i * width, wide[column], width, label=label, color=color)
+            for bar, hatch in zip(bars, worse, strict=True):
+                if hatch:  # false positives: lower is better
+                    bar.set_hatch("//")
+        ax.set_xticks(x + width * len(flows) / 2, [c.replace(" ", "\n") for c in cats], fontsize=8,
+                      rotation=30)
         ax.set_ylim(0, 1)
+        ax.set_ylabel(ylabel, fontsize=9)
         ax.set_title(title, fontsize=10)
-    axes[0].legend(fontsize=8)
+    axes[1].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    fig.supxlabel("Hatched: false positives (left: frames with a false region; right: static "
+                  "pixels flagged) - lower is better.", fontsize=8)
     return fig
 
 
@@ -142,9 +151,11 @@ def fig_categories(results: list[SequenceResult]) -> Figure:
     if len(objs):
         rate = objs.groupby(["sequence", "flow"]).detected.mean().unstack("flow")
         rate.plot.bar(ax=ax, rot=30)
-    ax.set_ylabel("detection rate")
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), title="flow")
+    ax.set_xlabel("sequence")
+    ax.set_ylabel("detection rate (object-frames)")
     ax.set_ylim(0, 1)
-    ax.set_title("Detection rate per scene", fontsize=10)
+    ax.set_title("Detection rate per sequence", fontsize=10)
     return fig
 
 
@@ -320,7 +331,7 @@ def write_report(results: list[SequenceResult], out: str | Path, params: Params,
     pr_fig, curves = fig_pr(results, params)
     figures["pr.png"] = pr_fig
     curves.to_csv(out / "pr.csv", index=False)
-    figures["categories.png"] = fig_categories(results)
+    figures["scenes.png"] = fig_categories(results)
     grid = fig6_grid(results, params)
     if grid is not None:
         figures["fig6.png"] = grid

@@ -129,7 +129,7 @@ def test_end_to_end_report(sequences, tmp_path):
                                workers=1, scheduler=None, progress=False)
     assert report.exists() and (tmp_path / "report" / "report.md").exists()
     for name in ("table2.csv", "objects.csv", "frames.csv", "ablation.csv", "pr.csv",
-                 "table2.png", "pr.png", "categories.png", "fig6.png"):
+                 "table2.png", "pr.png", "scenes.png", "fig6.png"):
         assert (tmp_path / "report" / name).exists(), name
     html = report.read_text()
     assert "data:image/png;base64," in html and "<img src=\"" not in html
