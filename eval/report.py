@@ -256,6 +256,7 @@ def markdown_to_html(lines: list[str], images: dict[str, bytes]) -> str:
     """The report's markdown as self-contained HTML: headings, paragraphs, lists, pipe tables
     (scrollable when wide), code blocks and figures embedded as data URIs. Only the markdown this
     module writes is handled, so the HTML report says everything ``report.md`` says."""
+    lines = [part for chunk in lines for part in chunk.split("\n")]  # tables come as one chunk
     out, i = [], 0
     while i < len(lines):
         line = lines[i]

@@ -140,6 +140,9 @@ def test_end_to_end_report(sequences, tmp_path):
     for heading in re.findall(r"^#+ (.+)$", md, re.M):
         assert heading.replace("'", "&#x27;") in html, heading
     assert html.count("<table") == len(re.findall(r"^\|[-:| ]+\|$", md, re.M))
+    table_rows = [ln for ln in md.splitlines() if ln.startswith("|")]
+    separators = [ln for ln in table_rows if re.fullmatch(r"\|[-:| ]+\|", ln)]
+    assert html.count("<tr>") == len(table_rows) - len(separators)  # one <tr> per row
     for name in re.findall(r"!\[[^]]*\]\(([^)]+)\)", md):
         assert f'alt="{name}"' in html and (tmp_path / "report" / name).exists()
     assert "src=\"http" not in html and "href=\"http" not in html  # self-contained
