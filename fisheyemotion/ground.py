@@ -28,6 +28,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .road import Road
+from .static_scene import TRIANGULATION_PARALLAX, triangulate_range, world_points
+from .tracks import track_corners
 
 __all__ = ["GroundEstimator", "PlaneModel", "check_road"]
 
@@ -118,9 +120,6 @@ class GroundEstimator:
         observed into this one (consecutive frames keep the displacements small for the
         tracker), triangulate them with the poses, keep the points (the last few pairs) and try
         a fit (:meth:`fit`)."""
-        from .static_scene import TRIANGULATION_PARALLAX, triangulate_range
-        from .tracks import track_corners
-
         if self._last is not None and np.array_equal(self._last[1], pose):
             return None  # this frame was observed already
         last, self._last = self._last, (gray.copy(), np.array(pose, dtype=np.float64))
@@ -141,7 +140,7 @@ class GroundEstimator:
         lam, ok = triangulate_range(r0, r1, pose0, pose1, far=100.0,
                                     min_parallax=TRIANGULATION_PARALLAX)
         ok &= v0 & v1
-        points = pose0[:3, 3] + lam[ok][:, None] * (r0[ok] @ pose0[:3, :3].T)
+        points = world_points(r0[ok], lam[ok], pose0)
         self._points = (self._points + [points])[-12:]
         self._pairs += 1
         # Refit with every pair while the point set is young, then now and then.

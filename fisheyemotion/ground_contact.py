@@ -32,6 +32,7 @@ from skimage.measure import label
 
 from .calib.base import CameraModel
 from .road import Road
+from .static_scene import world_points
 
 __all__ = ["contact_ratios", "standing_regions"]
 
@@ -77,7 +78,7 @@ def contact_ratios(labels: NDArray[np.intp], ranges: NDArray[np.float64],
         return out
     # Image direction of the world vertical at the edge's static point.
     centre = pose[:3, 3]
-    points = centre + lam[:, None] * (rays[er, ec] @ pose[:3, :3].T)
+    points = world_points(rays[er, ec], lam, pose)
     drop = 0.05 * lam[:, None] * (-road.up)  # a short step down, scaled with the range
     both = np.stack([points, points + drop]) - centre
     pix, valid = camera.project(both @ pose[:3, :3])

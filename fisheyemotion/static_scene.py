@@ -45,7 +45,7 @@ from scipy import ndimage
 
 from .calib.base import CameraModel
 
-__all__ = ["StaticScene", "TRIANGULATION_PARALLAX", "triangulate_range"]
+__all__ = ["StaticScene", "TRIANGULATION_PARALLAX", "triangulate_range", "world_points"]
 
 _DEGENERATE = 1e-9
 
@@ -89,6 +89,13 @@ def triangulate_range(rays0: NDArray[np.float64], rays1: NDArray[np.float64], po
         valid = np.isfinite(a) & (lam > 0) & (den >= np.sin(min_parallax) ** 2)
         lam = np.where(valid, np.minimum(lam, far), np.nan)
     return lam, valid
+
+
+def world_points(rays: NDArray[np.float64], ranges: NDArray[np.float64],
+                 pose: NDArray) -> NDArray[np.float64]:
+    """World points ``(..., 3)`` at ``ranges`` (...) along camera-frame ``rays`` (..., 3) of the
+    camera at ``pose`` (``world_from_cam``)."""
+    return pose[:3, 3] + ranges[..., None] * (rays @ pose[:3, :3].T)
 
 
 class StaticScene:
@@ -140,7 +147,7 @@ class StaticScene:
             Points added.
         """
         ok = static & np.isfinite(ranges)
-        points = pose[:3, 3] + ranges[ok][:, None] * (rays[ok] @ pose[:3, :3].T)
+        points = world_points(rays[ok], ranges[ok], pose)
         self._sets.appendleft(points)
         self._version += 1
         return len(points)
