@@ -130,10 +130,13 @@ class Sequence:
         if img is None or img.ndim != 2 or img.dtype not in dtypes:
             raise ValueError(f"{p}: cannot be read as a single-channel "
                              f"{'/'.join(np.dtype(d).name for d in dtypes)} image")
-        size = self.camera.height, self.camera.width
-        if img.shape != size:
-            raise ValueError(f"{p}: expected {size[1]}x{size[0]} (the camera's size), got "
-                             f"{img.shape[1]}x{img.shape[0]}")
+        return self._of_camera_size(p, img)
+
+    def _of_camera_size(self, p: Path, img: NDArray) -> NDArray:
+        """``img`` read from ``p``, or a ValueError naming it when its size is not the camera's."""
+        if img.shape[:2] != (self.camera.height, self.camera.width):
+            raise ValueError(f"{p}: expected {self.camera.width}x{self.camera.height} (the "
+                             f"camera's size), got {img.shape[1]}x{img.shape[0]}")
         return img
 
     def mask(self, index: int) -> NDArray[np.uint8]:
@@ -149,10 +152,7 @@ class Sequence:
         roi = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE)
         if roi is None:
             raise ValueError(f"{p}: cannot be read as an image")
-        if roi.shape != (self.camera.height, self.camera.width):
-            raise ValueError(f"{p}: expected {self.camera.width}x{self.camera.height} (the "
-                             f"camera's size), got {roi.shape[1]}x{roi.shape[0]}")
-        return roi
+        return self._of_camera_size(p, roi)
 
     def flow(self, index: int) -> dict[str, NDArray] | None:
         p = self.path / "flow" / self.frame_paths[index].name.replace(".png", ".npz")
