@@ -196,17 +196,21 @@ def cmd_detect(args: argparse.Namespace) -> int:
         print("fisheyemotion detect: no poses given or found in the input: estimating them from "
               "the images (scale unknown: no road terms); written to OUT/poses.txt",
               file=sys.stderr)
-        matcher = None
-        road_arg = Road.unknown()
-    elif args.poses_of == "rig":
-        if extrinsic is None:
-            raise CliError("--poses-of rig: the calibration file has no extrinsic for camera "
-                           f"{args.camera!r}")
-        trajectory = trajectory.compose(extrinsic)
-    if trajectory is not None:
+        matcher, road = None, Road.unknown()
+    else:
+        if args.poses_of == "rig":
+            if extrinsic is None:
+                raise CliError("--poses-of rig: the calibration file has no extrinsic for "
+                               f"camera {args.camera!r}")
+            trajectory = trajectory.compose(extrinsic)
         matcher = PoseMatcher(trajectory, args.match, max_gap=args.max_dt,
                               frames=len(frames) or None)
-        road_arg = _parse_road(args.road)
+        road = _parse_road(args.road)
+        if isinstance(road, Road):
+            from .ground import check_road
+
+            for note in check_road(road, trajectory.poses, "--road", warn=False):
+                print(f"fisheyemotion detect: warning: {note}", file=sys.stderr)
     params = _detect_params(args, camera)
     roi_path = Path(args.roi) if args.roi else (source / "roi.png" if is_sequence else None)
     roi = None
@@ -214,12 +218,6 @@ def cmd_detect(args: argparse.Namespace) -> int:
         roi = cv2.imread(str(roi_path), cv2.IMREAD_GRAYSCALE)
         if roi is None:
             raise CliError(f"{roi_path}: cannot be read as an image")
-    road = road_arg
-    if isinstance(road, Road) and trajectory is not None:
-        from .ground import check_road
-
-        for note in check_road(road, trajectory.poses, "--road"):
-            print(f"fisheyemotion detect: warning: {note}", file=sys.stderr)
     write_video = not source.is_dir() or is_bag
     with atomic_folder(Path(args.out), overwrite=args.overwrite) as tmp:
         table = run_detect(frames, camera, matcher, tmp, road=road, params=params,

@@ -187,9 +187,11 @@ class GroundEstimator:
         return self.road
 
 
-def check_road(road: Road, poses: NDArray[np.float64], source: str = "road") -> list[str]:
+def check_road(road: Road, poses: NDArray[np.float64], source: str = "road", *,
+               warn: bool = True) -> list[str]:
     """Warnings for a given road that is implausible for these camera poses (N, 4, 4): a camera
-    on or under it, or far above it. Returns the messages (also issued as warnings)."""
+    on or under it, or far above it. Returns the messages (also issued as warnings unless
+    ``warn`` is False, for callers that print them themselves)."""
     if not road.known:
         return []
     heights = road.height(poses[:, :3, 3])
@@ -201,6 +203,6 @@ def check_road(road: Road, poses: NDArray[np.float64], source: str = "road") -> 
     elif (heights > 10).all():
         notes.append(f"{source}: the camera is {np.median(heights):.1f} m above the road; is the "
                      "road in this world frame?")
-    for note in notes:
+    for note in notes if warn else ():
         warnings.warn(note, stacklevel=2)
     return notes
