@@ -111,9 +111,11 @@ def cmd_compare(args: argparse.Namespace) -> int:
     if len(cameras) < 2:
         raise CliError("--calib: give at least two calibration files to compare")
     scenarios = args.scenarios.split(",") if args.scenarios else synth.list_scenarios()
-    out = compare(cameras, scenarios, Path(args.out), params=_params(args), frames=args.frames,
-                  workers=args.workers, progress=not args.quiet)
-    print(f"report: {out}")
+    final = Path(args.out)
+    with atomic_folder(final, overwrite=args.overwrite) as tmp:
+        out = compare(cameras, scenarios, tmp, params=_params(args), frames=args.frames,
+                      workers=args.workers, progress=not args.quiet)
+    print(f"report: {final / out.name}")
     return 0
 
 
@@ -161,12 +163,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("eval", help="evaluate detection on sequence folders and write a report")
     p.add_argument("seq_dirs", nargs="+", metavar="SEQ_DIR",
                    help="sequence folders, or folders holding them")
-    p.add_argument("--params", help="YAML/JSON file of Params, or 'paper' for the paper's pipeline")
-    p.add_argument("--flow", default="farneback", help="comma-separated: farneback,dis")
+    p.add_argument("--params", help="YAML/JSON file of Params, or 'paper' for the paper's "
+                   "pipeline (default: the defaults)")
+    p.add_argument("--flow", default="farneback",
+                   help="flow methods, comma-separated: farneback,dis (default: %(default)s)")
     p.add_argument("--out", required=True, help="report folder (written whole at the end)")
     p.add_argument("--overwrite", action="store_true", help="replace a non-empty --out")
     p.add_argument("--workers", type=int, help="local processes (default: CPU count)")
-    p.add_argument("--scheduler", help="Dask distributed scheduler address (tcp://host:port)")
+    p.add_argument("--scheduler", help="Dask distributed scheduler address, tcp://host:port "
+                   "(default: none, a local process pool)")
     p.add_argument("--world", choices=("scene", "first_camera", "raised"), default="scene",
                    help="give the detector the poses in this world frame: the scene's (z up, "
                    "road z = 0), the first camera's, or z up with the road at -1.7 m and turned "
@@ -174,8 +179,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--road", choices=("given", "auto"), default="given",
                    help="the scene's road in that frame, or estimated from the stream "
                    "(default: %(default)s)")
-    p.add_argument("--camera-height", type=float,
-                   help="with --road auto: the camera's height, when known")
+    p.add_argument("--camera-height", type=float, metavar="METRES",
+                   help="with --road auto: the camera's height above the road, when known "
+                        "(default: unknown)")
     p.add_argument("--additions", action="store_true",
                    help="also evaluate the paper's pipeline with each addition alone and all "
                         "together (additions.csv, a section of report.md)")
@@ -187,19 +193,26 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--scenarios", help="comma-separated bundled scenario names (default: all)")
     p.add_argument("--frames", type=int, default=10,
                    help="frames rendered per scenario and camera (default: %(default)s)")
-    p.add_argument("--params", help="YAML/JSON file of Params, or 'paper'")
-    p.add_argument("--out", required=True, help="report folder")
+    p.add_argument("--params", help="YAML/JSON file of Params, or 'paper' (default: the "
+                   "defaults)")
+    p.add_argument("--out", required=True, help="report folder (written whole at the end)")
+    p.add_argument("--overwrite", action="store_true", help="replace a non-empty --out")
     p.add_argument("--workers", type=int, help="local processes (default: CPU count)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_compare)
 
     p = sub.add_parser("demo", help="render the bundled scenarios, detect, write a report")
-    p.add_argument("--data", default=str(REPO_DATA), help="the data/ folder (default: bundled)")
-    p.add_argument("--out", default="data/generated/demo", help="output folder")
+    p.add_argument("--data", default=str(REPO_DATA),
+                   help="folder of calib/, scenarios/ and real/ (default: the bundled data/)")
+    p.add_argument("--out", default="data/generated/demo",
+                   help="output folder: sequences/ and report/, replaced on each run "
+                        "(default: %(default)s)")
     p.add_argument("--frames", type=int, default=16,
-                   help="frames per open-road scenario (the streets keep their own 48)")
+                   help="frames per open-road scenario; the streets keep their own 48 "
+                        "(default: %(default)s)")
     p.add_argument("--scenarios", help="comma-separated scenario names (default: all)")
-    p.add_argument("--flow", default="farneback,dis", help="comma-separated: farneback,dis")
+    p.add_argument("--flow", default="farneback,dis",
+                   help="flow methods, comma-separated (default: %(default)s)")
     p.add_argument("--workers", type=int, help="local processes (default: CPU count)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_demo)

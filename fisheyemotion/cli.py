@@ -7,6 +7,7 @@ Errors are one line on stderr and exit code 2.
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from collections.abc import Sequence
 from importlib.metadata import entry_points
@@ -105,11 +106,12 @@ def _poses_file(source: Path, given: str | None) -> Path | None:
 def run_detect(frames, camera: calib.CameraModel, matcher, out: Path, *,
                road: Road | str, params: Params, write_video: bool, progress: bool = True,
                roi: np.ndarray | None = None, camera_height: float | None = None,
-               fps: float | None = None) -> pd.DataFrame:
+               fps: float | None = None, show: bool = False) -> pd.DataFrame:
     """Detect over a whole input into ``out`` (a fresh folder): an annotated frame for every
     input frame (video at the input's rate, or PNGs named like the frames), likelihood maps and
     masks (npz), ``regions.csv`` and ``regions.jsonl`` with each region's frame, time, bearing
-    and ground distance, and ``poses.txt`` (the poses used, TUM)."""
+    and ground distance, and ``poses.txt`` (the poses used, TUM). ``show``: each annotated
+    frame also in a window (q or Esc closes it; detection goes on)."""
     from .draw import annotate
     from .outputs import region_records
     from .poses import write_tum
@@ -151,6 +153,8 @@ def run_detect(frames, camera: calib.CameraModel, matcher, out: Path, *,
             writer.write(shown)
         else:
             cv2.imwrite(str(out / "annotated" / f"{name}.png"), shown)
+        if show:
+            show = _show(shown)
     if writer is not None:
         writer.release()
     columns = ["frame", "name", "timestamp", "label", "x", "y", "w", "h", "area",
@@ -166,11 +170,39 @@ def run_detect(frames, camera: calib.CameraModel, matcher, out: Path, *,
     return table
 
 
+WINDOW = "fisheyemotion detect"
+
+
+def _check_gui() -> None:
+    """``--show`` needs an OpenCV built with a GUI; the headless wheel this package installs
+    has none."""
+    if re.search(r"GUI:\s+NONE", cv2.getBuildInformation()):
+        raise CliError("--show: this OpenCV build has no GUI (opencv-python-headless, which "
+                       "fisheyemotion installs); install opencv-python in its place to show "
+                       "windows, or watch the annotated output afterwards")
+
+
+def _show(image: np.ndarray) -> bool:
+    """Show ``image``; False once the user closed the window with q or Esc."""
+    try:
+        cv2.imshow(WINDOW, image)
+        key = cv2.waitKey(1) & 0xFF
+    except cv2.error as exc:
+        raise CliError(f"--show: cannot open a window ({str(exc).strip().splitlines()[-1]})") \
+            from None
+    if key in (ord("q"), 27):
+        cv2.destroyWindow(WINDOW)
+        return False
+    return True
+
+
 def cmd_detect(args: argparse.Namespace) -> int:
     from .inputs import open_source
     from .outputs import atomic_folder
     from .poses import PoseMatcher, read_poses
 
+    if args.show:
+        _check_gui()
     source = Path(args.input)
     frames = open_source(source, image_topic=args.image_topic)
     is_bag = hasattr(frames, "trajectory")
@@ -222,7 +254,7 @@ def cmd_detect(args: argparse.Namespace) -> int:
     with atomic_folder(Path(args.out), overwrite=args.overwrite) as tmp:
         table = run_detect(frames, camera, matcher, tmp, road=road, params=params,
                            write_video=write_video, progress=not args.quiet, roi=roi,
-                           camera_height=args.camera_height, fps=frames.fps)
+                           camera_height=args.camera_height, fps=frames.fps, show=args.show)
         road_note = (tmp / "road.txt").read_text().strip()
     print(f"{len(table)} regions in {table['frame'].nunique()} frames; {road_note}; "
           f"written to {args.out}")
@@ -307,26 +339,34 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--road", default="auto",
                    help="auto (estimate it), none, z0, or 'nx,ny,nz,offset' in the world frame "
                    "(default: %(default)s)")
-    p.add_argument("--camera-height", type=float,
-                   help="metres above the road, when known (checks the estimated road)")
+    p.add_argument("--camera-height", type=float, metavar="METRES",
+                   help="the camera's height above the road, when known: checks the estimated "
+                        "road (default: unknown)")
     p.add_argument("--params", help="YAML/JSON file of Params, or 'paper' (default: the "
                    "defaults, grid and areas scaled to the camera's resolution)")
     p.add_argument("--roi", help="mask image of pixels to use (default: INPUT/roi.png if present)")
-    p.add_argument("--flow", choices=("farneback", "dis"), help="override the flow method")
+    p.add_argument("--flow", choices=("farneback", "dis"),
+                   help="the flow method (default: the one in --params, farneback)")
     p.add_argument("--image-topic", help="bag: the image topic (default: the only one)")
     p.add_argument("--info-topic", help="bag: the CameraInfo topic (default: the image topic's "
                    "camera_info)")
-    p.add_argument("--pose-topic", help="bag: a PoseStamped or Odometry topic")
-    p.add_argument("--pose-frame", help="bag: the tf frame whose poses to use (with /tf)")
+    p.add_argument("--pose-topic", help="bag: a PoseStamped or Odometry topic (default: none; "
+                   "poses from --pose-frame, --poses, or estimated)")
+    p.add_argument("--pose-frame", help="bag: the tf frame whose poses to use, from /tf and "
+                   "/tf_static (default: none)")
     p.add_argument("--world-frame", help="bag: the tf frame the poses are in (default: the root)")
     p.add_argument("--out", required=True, help="output folder (written whole at the end)")
     p.add_argument("--overwrite", action="store_true", help="replace a non-empty --out")
+    p.add_argument("--show", action="store_true",
+                   help="show each annotated frame in a window as it is done (needs an OpenCV "
+                        "build with a GUI, e.g. opencv-python; q or Esc stops)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_detect)
 
     p = sub.add_parser("synth", help="render a scenario to a sequence folder")
-    p.add_argument("--scenario", help="bundled scenario name or YAML file")
-    p.add_argument("--calib", help="calibration file of the camera")
+    p.add_argument("--scenario", help="bundled scenario name or YAML file (required unless "
+                   "--list)")
+    p.add_argument("--calib", help="calibration file of the camera (required unless --list)")
     p.add_argument("--camera", type=_camera_arg, default=0,
                    help="camera index or name in --calib (default: %(default)s)")
     p.add_argument("--frames", type=int, help="number of frames, at least 2 (default: the "
@@ -337,7 +377,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="rays per pixel along each axis, 1-8 (default: %(default)s)")
     p.add_argument("--noise", type=float, default=0.0,
                    help="sensor noise sigma, grey levels (default: %(default)s)")
-    p.add_argument("--out", help="output sequence folder (written whole at the end)")
+    p.add_argument("--out", help="output sequence folder, written whole at the end (required "
+                   "unless --list)")
     p.add_argument("--overwrite", action="store_true", help="replace a non-empty --out")
     p.add_argument("--list", action="store_true", help="list the bundled scenarios")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import cv2
 import numpy as np
@@ -81,30 +81,97 @@ def annotate(frame: NDArray[np.uint8], detection: Detection) -> NDArray[np.uint8
     return out
 
 
-ROW_TITLES = ("I flow", "II epipolar", "III positive depth", "IV positive height",
-              "V anti-parallel", "VI likelihood", "VII segmentation")
+def truth_overlay(frame: NDArray[np.uint8], mask: NDArray[np.uint8],
+                  truth: NDArray[np.bool_], *, alpha: float = 0.55) -> NDArray[np.uint8]:
+    """Detections judged against ground truth on a copy of ``frame``: green where the mask is on
+    a moving object (true), red where it is on static scene (false), blue where a moving object
+    is missed.
+
+    Parameters
+    ----------
+    frame : ndarray of uint8, shape (H, W) or (H, W, 3)
+    mask : ndarray of uint8, shape (H, W)
+        The detection mask (0/255).
+    truth : ndarray of bool, shape (H, W)
+        True on moving objects.
+    """
+    out = _bgr(frame)
+    if mask.shape != out.shape[:2] or truth.shape != out.shape[:2]:
+        raise ValueError(f"mask, truth: expected shape {out.shape[:2]}, got {mask.shape} and "
+                         f"{truth.shape}")
+    found = mask > 0
+    for sel, color in ((found & truth, (0, 200, 0)), (found & ~truth, (0, 0, 255)),
+                       (~found & truth, (255, 120, 0))):
+        out[sel] = (out[sel] * (1 - alpha) + np.array(color) * alpha).astype(np.uint8)
+    return out
 
 
-def fig6(columns: Sequence[tuple[NDArray[np.uint8], Detection, str]], *,
-         saturation: float = 0.02) -> Figure:
-    """The paper's Fig. 6: rows I-VII (flow, the four deviations, likelihood, segmentation) for
-    one or more frame pairs ``(frame, detection, title)``."""
-    n = len(columns)
+class Fig6Column(NamedTuple):
+    """One column of :func:`fig6`: the current frame, its detection, a title and, when known,
+    the ground-truth moving pixels (bool, shape (H, W))."""
+
+    frame: NDArray[np.uint8]
+    detection: Detection
+    title: str
+    truth: NDArray[np.bool_] | None = None
+
+
+ROW_TITLES = ("I flow", "II epipolar", "III positive\ndepth", "IV positive\nheight",
+              "V anti-\nparallel", "VI likelihood", "VII detected")
+STILL_NOTE = "camera still:\nterm not used;\nVI is |p\u2032\u00d7p|"
+
+
+def fig6(columns: Sequence[Fig6Column | tuple], *, saturation: float = 0.02,
+         arrows: int = 14) -> Figure:
+    """The paper's Fig. 6 for one or more frame pairs.
+
+    Rows: I the grid-averaged flow (about ``arrows`` arrows across, from where each cell was in
+    the previous frame to where it is now), II-V the four deviations and VI the likelihood (one
+    colour scale, saturated at ``saturation`` like the paper's), VII the segmentation; with
+    ground truth, VII colours true detections green, false ones red and missed object pixels
+    blue. Columns whose camera stood still say that rows II-V are not used there.
+
+    Parameters
+    ----------
+    columns : sequence of Fig6Column or tuples (frame, detection, title[, truth])
+    saturation : float
+        Top of the colour scale, radians.
+    arrows : int
+        Arrows across the image in row I.
+    """
+    from matplotlib import colormaps
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(3.2 * n, 2.4 * 7), layout="constrained")
+    cols = [Fig6Column(*c) for c in columns]
+    n = len(cols)
+    fig = Figure(figsize=(2.9 * n + 1.6, 2.3 * 7), layout="constrained")
     axes = fig.subplots(7, n, squeeze=False)
-    for c, (frame, det, title) in enumerate(columns):
-        rows = [flow_arrows(frame, det)]
+    for c, col in enumerate(cols):
+        det = col.detection
+        step = max(1, det.grid.centres.shape[1] // arrows)
+        rows = [flow_arrows(col.frame, det, step=step)]
         rows += [heatmap(det.maps[name], vmax=saturation) for name in CONSTRAINT_NAMES]
-        rows += [likelihood_map(det, saturation=saturation), overlay_mask(frame, det.mask)]
+        rows.append(likelihood_map(det, saturation=saturation))
+        rows.append(overlay_mask(col.frame, det.mask) if col.truth is None
+                    else truth_overlay(col.frame, det.mask, col.truth))
         for r, img in enumerate(rows):
             ax = axes[r, c]
             ax.imshow(cv2.cvtColor(img, cv2.COLOR_BGR2RGB))
             ax.set_xticks([])
             ax.set_yticks([])
+            if det.static_camera and 1 <= r <= 4:
+                ax.text(0.5, 0.5, STILL_NOTE, transform=ax.transAxes, ha="center", va="center",
+                        color="white", fontsize=10)
             if c == 0:
-                ax.set_ylabel(ROW_TITLES[r], fontsize=9)
+                ax.set_ylabel(ROW_TITLES[r], fontsize=12, rotation=0, ha="right", va="center")
             if r == 0:
-                ax.set_title(title, fontsize=10)
+                ax.set_title(col.title, fontsize=11)
+    colorbar = fig.colorbar(ScalarMappable(Normalize(0, saturation), colormaps["inferno"]),
+                            ax=axes[1:6, :].ravel().tolist(), shrink=0.6, aspect=40, pad=0.01)
+    colorbar.set_label(f"deviation / likelihood (rad), saturated at {saturation:g}", fontsize=11)
+    if any(col.truth is not None for col in cols):
+        fig.supxlabel("VII: green = detected on a moving object, red = false detection on static "
+                      "scene, blue = missed object pixels", fontsize=11)
     return fig

@@ -170,7 +170,18 @@ def test_drawing_returns_bgr_images_and_the_fig6_layout(pair):
     sel = det.mask > 0
     assert (overlay[sel][:, 1].astype(int) >= f0.image[sel][:, 1]).all()  # greener
     fig = draw.fig6([(f0.image, det, "crossing")])
-    assert len(fig.axes) == 7
+    assert len(fig.axes) == 7 + 1  # seven rows and the colour bar
+    # Against ground truth: green on true detections, red on false ones, blue on missed pixels.
+    truth = np.zeros(det.mask.shape, bool)
+    truth[:, :320] = True
+    judged = draw.truth_overlay(f0.image, det.mask, truth).astype(int) - f0.image
+    found = det.mask > 0
+    for sel, channel in ((found & truth, 1), (found & ~truth, 2), (~found & truth, 0)):
+        assert sel.any()
+        assert (judged[sel].argmax(axis=1) == channel).mean() > 0.95
+    assert (judged[~found & ~truth] == 0).all()
+    fig = draw.fig6([draw.Fig6Column(f0.image, det, "crossing", truth)] * 2)
+    assert len(fig.axes) == 2 * 7 + 1 and "green" in fig._supxlabel.get_text()
 
 
 def test_detect_cli_on_a_sequence_folder(tmp_path, pair):

@@ -138,13 +138,16 @@ def test_end_to_end_report(sequences, tmp_path):
     import re
 
     for heading in re.findall(r"^#+ (.+)$", md, re.M):
-        assert heading.replace("'", "&#x27;") in html, heading
+        assert heading in html, heading
     assert html.count("<table") == len(re.findall(r"^\|[-:| ]+\|$", md, re.M))
     table_rows = [ln for ln in md.splitlines() if ln.startswith("|")]
     separators = [ln for ln in table_rows if re.fullmatch(r"\|[-:| ]+\|", ln)]
     assert html.count("<tr>") == len(table_rows) - len(separators)  # one <tr> per row
-    for name in re.findall(r"!\[[^]]*\]\(([^)]+)\)", md):
+    figures = re.findall(r"^!\[(.+)\]\(([^)]+)\)$", md, re.M)
+    assert len(figures) >= 4 and html.count("<figcaption>") == len(figures)
+    for caption, name in figures:  # every figure exists, is embedded and has its caption
         assert f'alt="{name}"' in html and (tmp_path / "report" / name).exists()
+        assert caption.split(".")[0] in html and caption.split(".")[0].startswith("Figure")
     assert "src=\"http" not in html and "href=\"http" not in html  # self-contained
     wide = pd.read_csv(tmp_path / "report" / "table2.csv")
     assert list(wide.category) == ["crossing", "overtaking", "preceding", "approaching",
