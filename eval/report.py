@@ -315,7 +315,7 @@ def markdown_to_html(lines: list[str], images: dict[str, bytes]) -> str:
             align = align or ["left"] * len(rows[0])
             head = "".join(f"<th>{_inline(c)}</th>" for c in rows[0])
             body = "".join("<tr>" + "".join(
-                f"<td style='text-align:{a}'>{_inline(c)}</td>" for c, a in zip(r, align))
+                f"<td style='text-align:{a}'>{_inline(c)}</td>" for c, a in zip(r, align, strict=False))
                 + "</tr>" for r in rows[1:])
             out.append(f"<div class='wide'><table><tr>{head}</tr>{body}</table></div>")
             continue
