@@ -2,7 +2,9 @@
 
 ``make screenshots`` (after ``make demo``), or ``python docs/screenshots.py [report.html]``:
 renders the page in a 1280-pixel-wide window and writes it, cut into screen-high tiles, to
-``docs/img/report_<n>.png``. Needs Debian's ``chromium`` (``apt-get install chromium``).
+``docs/img/report_<n>.png``, and copies the report's figures that docs/ shows
+(``docs/img/eval_*.png``, ``docs/img/real_aria.png``). Needs Debian's ``chromium``
+(``apt-get install chromium``).
 """
 
 from __future__ import annotations
@@ -19,6 +21,9 @@ import numpy as np
 
 OUT = Path(__file__).parent / "img"
 WIDTH, TILE = 1280, 1600
+#: The report's figures shown in docs/, by their name there.
+FIGURES = {"table2.png": "eval_table2.png", "pr.png": "eval_pr.png",
+           "scenes.png": "eval_scenes.png", "fig6.png": "eval_fig6.png", "real.png": "real_aria.png"}
 # Flags for a machine with no network and no display; --no-sandbox because CI runs as root.
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
          "--disable-background-networking", "--disable-component-update", "--disable-sync",
@@ -63,7 +68,9 @@ def main(argv: list[str] | None = None) -> int:
     tiles = range(0, height, TILE)
     for n, top in enumerate(tiles, 1):
         cv2.imwrite(str(out / f"report_{n}.png"), img[top:min(top + TILE, height)])
-    print(f"{len(tiles)} tiles of {WIDTH} px width in {out}")
+    copied = [shutil.copyfile(page.parent / src, out / dst) for src, dst in FIGURES.items()
+              if (page.parent / src).exists()]
+    print(f"{len(tiles)} tiles of {WIDTH} px width and {len(copied)} figures in {out}")
     return 0
 
 
