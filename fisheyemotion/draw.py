@@ -163,15 +163,15 @@ def fig6(columns: Sequence[Fig6Column | tuple], *, saturation: float = 0.02,
             ax.set_yticks([])
             if det.static_camera and 1 <= r <= 4:
                 ax.text(0.5, 0.5, STILL_NOTE, transform=ax.transAxes, ha="center", va="center",
-                        color="white", fontsize=10)
+                        color="white", fontsize=11)
             if c == 0:
-                ax.set_ylabel(ROW_TITLES[r], fontsize=12, rotation=0, ha="right", va="center")
+                ax.set_ylabel(ROW_TITLES[r], fontsize=14, rotation=0, ha="right", va="center")
             if r == 0:
-                ax.set_title(col.title, fontsize=11)
+                ax.set_title(col.title, fontsize=13)
     colorbar = fig.colorbar(ScalarMappable(Normalize(0, saturation), colormaps["inferno"]),
                             ax=axes[1:6, :].ravel().tolist(), shrink=0.6, aspect=40, pad=0.01)
-    colorbar.set_label(f"deviation / likelihood (rad), saturated at {saturation:g}", fontsize=11)
+    colorbar.set_label(f"deviation / likelihood (rad), saturated at {saturation:g}", fontsize=13)
     if any(col.truth is not None for col in cols):
         fig.supxlabel("VII: green = detected on a moving object, red = false detection on static "
-                      "scene, blue = missed object pixels", fontsize=11)
+                      "scene, blue = missed object pixels", fontsize=13)
     return fig
