@@ -52,7 +52,7 @@ MAX_FOCAL = 1e7
 #: Normalised radius beyond which a projection is not valid (a ray at the edge of a model's
 #: domain where r(theta) -> infinity, e.g. 90 degrees for a pinhole or a unified xi = 0).
 MAX_RADIUS = 1e6
-_TABLE_SAMPLES = 4097
+_TABLE_SAMPLES = 16385
 
 
 def pixel_grid(width: int, height: int) -> NDArray[np.float64]:
