@@ -14,7 +14,7 @@ import pandas as pd
 
 #: group -> the benchmark (by name prefix) every other row of the group is compared with.
 PEERS = {
-    "unproject-640x480": "test_cv2_fisheye_undistortPoints",
+    "unproject-640x480": "test_cv2_fisheye_undistortPoints_bare",
     "project-640x480": "test_cv2_fisheye_projectPoints",
     "engine-12k": "test_naive_loop_12k[math]",
     "engine-307k": "test_naive_loop_307k[math]",

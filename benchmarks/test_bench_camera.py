@@ -25,9 +25,13 @@ D = np.array([KB.k1, KB.k2, KB.k3, KB.k4])
 
 
 def cv2_rays(pixels: np.ndarray) -> np.ndarray:
+    """cv2's normalised coordinates made unit rays, leanly: (x, y, 1) / sqrt(x^2 + y^2 + 1)."""
     xy = cv2.fisheye.undistortPoints(pixels.reshape(-1, 1, 2), K, D).reshape(-1, 2)
-    rays = np.concatenate([xy, np.ones((len(xy), 1))], axis=1)
-    return rays / np.linalg.norm(rays, axis=1, keepdims=True)
+    rays = np.empty((len(xy), 3))
+    inv = 1.0 / np.sqrt(np.einsum("ij,ij->i", xy, xy) + 1.0)
+    np.multiply(xy, inv[:, None], out=rays[:, :2])
+    rays[:, 2] = inv
+    return rays
 
 
 def _angle(a, b):
@@ -35,7 +39,15 @@ def _angle(a, b):
 
 
 @pytest.mark.benchmark(group="unproject-640x480")
-def test_cv2_fisheye_undistortPoints(benchmark):
+def test_cv2_fisheye_undistortPoints_bare(benchmark):
+    """The peer: what a cv2 user runs, normalised coordinates (x/z, y/z), not rays."""
+    obj = PIXELS.reshape(-1, 1, 2)
+    benchmark(cv2.fisheye.undistortPoints, obj, K, D)
+    benchmark.extra_info["pixels"] = len(PIXELS)
+
+
+@pytest.mark.benchmark(group="unproject-640x480")
+def test_cv2_fisheye_undistortPoints_to_rays(benchmark):
     rays = benchmark(cv2_rays, PIXELS)
     ours, _ = KB.unproject(PIXELS)
     theta = np.degrees(np.arccos(ours[:, 2]))

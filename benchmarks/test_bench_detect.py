@@ -26,8 +26,11 @@ SCENARIO = synth.load_scenario("crossing")
 @pytest.fixture(scope="module")
 def frames():
     r = synth.Renderer(CAM, SCENARIO)
-    out = [r.render(k) for k in range(4)]
+    out = [r.render(k) for k in range(STREAM_FRAMES)]
     return out, r.roi()
+
+
+STREAM_FRAMES = 12  # the stream benchmark: 6 frames to fill the gap and the scene model, 6 timed
 
 
 def _gray(f):
@@ -42,15 +45,23 @@ CONFIGS = {
 }
 
 
+THREADED = ("flow_alone", "paper_pipeline", "default_pipeline", "default_after_flow")
+
+
+@pytest.mark.parametrize("threads", [1, 2], ids=["1t", "2t"])
 @pytest.mark.parametrize("name", CONFIGS)
 @pytest.mark.parametrize("stage", ["flow_alone", "paper_pipeline", "default_pipeline",
-                                   "non_flow", "default_non_flow", "ray_lookup", "constraints",
-                                   "segmentation"])
-def test_detect_stage(benchmark, frames, name, stage):
+                                   "non_flow", "default_non_flow", "default_after_flow",
+                                   "ray_lookup", "constraints", "segmentation"])
+def test_detect_stage(benchmark, frames, name, stage, threads):
+    """One frame pair (3 apart) at 640x480 with cv2 pinned to ``threads``; the stages besides
+    the flow at one thread only."""
+    if threads == 2 and stage not in THREADED:
+        pytest.skip("the non-flow stages are timed at one thread")
     fr, roi = frames
     g0, g1 = _gray(fr[0]), _gray(fr[3])
     p0, p1 = fr[0].pose, fr[3].pose
-    benchmark.group = f"detect-{name}"
+    benchmark.group = f"detect-{name}-{threads}t"
     paper = fm.MotionDetector(CAM, params=fm.Params.paper(**CONFIGS[name]), roi=roi)
     if stage == "flow_alone":
         benchmark(paper._flow, g0, g1)
@@ -68,6 +79,16 @@ def test_detect_stage(benchmark, frames, name, stage):
         for _ in range(3):
             det.detect_flow(flow, p0, p1, prev=g0, stream=True)
         benchmark(det.detect_flow, flow, p0, p1, prev=g0, stream=True)
+    elif stage == "default_after_flow":  # the same, each round right after a real flow call
+        det = fm.MotionDetector(CAM, params=fm.Params(**CONFIGS[name]), roi=roi)
+        flow = det.flow(g0, g1, p0, p1)
+        for _ in range(3):
+            det.detect_flow(flow, p0, p1, prev=g0, stream=True)
+
+        def setup():  # untimed: the flow leaves the caches as a real stream finds them
+            return (det.flow(g0, g1, p0, p1), p0, p1), {"prev": g0, "stream": True}
+
+        benchmark.pedantic(det.detect_flow, setup=setup, rounds=40, warmup_rounds=2)
     else:
         flow = paper._flow(g0, g1)
         cells = grid_average(flow, 5)
@@ -96,6 +117,31 @@ def test_render_frame(benchmark):
 def test_render_peer_farneback(benchmark, frames):
     fr, _ = frames
     benchmark(fm.MotionDetector(CAM, params=fm.Params.paper())._flow, _gray(fr[0]), _gray(fr[1]))
+
+
+@pytest.mark.benchmark(group="stream-640x480")
+@pytest.mark.parametrize("threads", [1, 2], ids=["1t", "2t"])
+@pytest.mark.parametrize("name", ["dis-ultrafast", "farneback"])
+def test_stream_640x480(benchmark, frames, name, threads):
+    """``MotionDetector.apply`` with ``Params()`` as a user streams it: frames per second
+    (extra_info) over the frames after the gap and the scene model have filled."""
+    fr, roi = frames
+    grays = [_gray(f) for f in fr]
+    half = STREAM_FRAMES // 2
+
+    def setup():
+        det = fm.MotionDetector(CAM, params=fm.Params(**CONFIGS[name]), roi=roi)
+        for k in range(half):
+            det.apply(grays[k], fr[k].pose)
+        return (det,), {}
+
+    def run(det):
+        for k in range(half, STREAM_FRAMES):
+            det.apply(grays[k], fr[k].pose)
+
+    benchmark.pedantic(run, setup=setup, rounds=8, warmup_rounds=1)
+    per_frame = benchmark.stats.stats.median / (STREAM_FRAMES - half)
+    benchmark.extra_info.update(frames=STREAM_FRAMES - half, fps=round(1 / per_frame, 1))
 
 
 def _rss_mb() -> float:

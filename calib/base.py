@@ -42,7 +42,6 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import _polynomial_kernel
 from ._arrays import as_points, check_real, check_size
 
 _GRID_SAMPLES = 8192
@@ -53,6 +52,14 @@ MAX_FOCAL = 1e7
 #: domain where r(theta) -> infinity, e.g. 90 degrees for a pinhole or a unified xi = 0).
 MAX_RADIUS = 1e6
 _TABLE_SAMPLES = 16385
+
+
+def kernels():
+    """The numba kernels (``calib/_polynomial_kernel.py``), imported on first use: numba takes a
+    tenth of a second to import, which ``import fisheyemotion`` does not pay."""
+    from . import _polynomial_kernel
+
+    return _polynomial_kernel
 
 
 def pixel_grid(width: int, height: int) -> NDArray[np.float64]:
@@ -293,19 +300,19 @@ class CameraModel:
     @cached_property
     def _theta_table(self) -> NDArray[np.float64]:
         c, dc = self._polynomial_tuples
-        return _polynomial_kernel.theta_table(c, dc, self.theta_max, self.radius_max, _TABLE_SAMPLES)
+        return kernels().theta_table(c, dc, self.theta_max, self.radius_max, _TABLE_SAMPLES)
 
     def _project_polynomial(
         self, p: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
         c, _ = self._polynomial_tuples
-        return self._run_kernel(_polynomial_kernel.project_polynomial, p, 2, c, self.theta_max)
+        return self._run_kernel(kernels().project_polynomial, p, 2, c, self.theta_max)
 
     def _unproject_polynomial(
         self, q: NDArray[np.float64]
     ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
         c, dc = self._polynomial_tuples
-        return self._run_kernel(_polynomial_kernel.unproject_polynomial, q, 3, c, dc,
+        return self._run_kernel(kernels().unproject_polynomial, q, 3, c, dc,
                                 self.theta_max, self.radius_max, self._theta_table)
 
     def _run_kernel(self, kernel, points: NDArray[np.float64], out_dim: int, *args,

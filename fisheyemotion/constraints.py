@@ -30,7 +30,6 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._engine_kernel import constraint_kernel
 from .calib._arrays import as_points
 from .calib.transforms import check_rigid
 from .params import Params
@@ -130,6 +129,8 @@ def constraints(
 
     out = np.empty((5, len(p_flat)))
     valid = np.empty(len(p_flat), dtype=bool)
+    from ._engine_kernel import constraint_kernel  # numba on first use: a light import
+
     constraint_kernel(
         p_flat, q_flat, np.ascontiguousarray(t0[:3, :3]), np.ascontiguousarray(t1[:3, :3]),
         baseline / b, b, -road.up, float(road.height(t0[:3, 3])) if road.known else 0.0,

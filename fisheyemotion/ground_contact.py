@@ -28,7 +28,6 @@ import warnings
 
 import numpy as np
 from numpy.typing import NDArray
-from skimage.measure import label
 
 from .calib.base import CameraModel
 from .road import Road
@@ -128,6 +127,7 @@ def standing_regions(moving: NDArray[np.bool_], antiparallel_share: NDArray[np.f
     -------
     ndarray of bool, shape (rows, cols)
     """
+    from skimage.measure import label  # scikit-image/scipy on first use: `import fisheyemotion` stays light
     labels = label(moving, connectivity=2)
     n = int(labels.max())
     if n == 0:

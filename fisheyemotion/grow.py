@@ -18,8 +18,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
-from skimage.measure import label
 
 __all__ = ["grow_regions"]
 
@@ -48,6 +46,8 @@ def grow_regions(moving: NDArray[np.bool_], residual: NDArray[np.float64],
     ndarray of bool, shape (rows, cols)
         ``moving`` and the cells grown into.
     """
+    from scipy import ndimage
+    from skimage.measure import label  # scikit-image/scipy on first use: `import fisheyemotion` stays light
     labels = label(moving, connectivity=2)
     n = int(labels.max())
     if n == 0 or steps <= 0:

@@ -14,7 +14,6 @@ from __future__ import annotations
 import cv2
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
 
 from .calib.base import CameraModel
 from .road import Road
@@ -120,6 +119,7 @@ class EgoFlowPrior:
         ok &= self._valid
         flow = np.where(ok[..., None], pixels - self._pixels, 0.0).astype(np.float32)
         if ok.any() and not ok.all():
+            from scipy import ndimage  # scikit-image/scipy on first use: `import fisheyemotion` stays light
             _, (r, c) = ndimage.distance_transform_edt(~ok, return_indices=True)
             flow = flow[r, c]
         seen = lands_on(pixels, ok, view, self.camera.width, self.camera.height)

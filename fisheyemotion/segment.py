@@ -7,9 +7,6 @@ from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
-from skimage.filters import apply_hysteresis_threshold
-from skimage.measure import label
 
 
 class Region(NamedTuple):
@@ -51,6 +48,9 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
     mask : ndarray of bool, shape (rows, cols)
     regions : list of Region, largest first
     """
+    from scipy import ndimage  # scikit-image/scipy on first use: `import fisheyemotion` stays light
+    from skimage.filters import apply_hysteresis_threshold
+    from skimage.measure import label
     values = np.nan_to_num(cell_likelihood, nan=0.0)
     if seed_threshold > threshold:  # hysteresis: regions need a cell above the seed threshold
         moving = apply_hysteresis_threshold(values, threshold, seed_threshold)

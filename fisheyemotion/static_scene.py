@@ -41,7 +41,6 @@ from collections import deque
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import ndimage
 
 from .calib.base import CameraModel
 
@@ -201,6 +200,7 @@ class StaticScene:
         if known.any() and not known.all():
             # Fill one-sample holes from the nearest neighbour (the z-buffer leaves gaps where the
             # points of a 5-px grid fall unevenly on the prior's samples).
+            from scipy import ndimage  # scikit-image/scipy on first use: `import fisheyemotion` stays light
             near = ndimage.grey_erosion(out, size=(3, 3), mode="nearest")
             out = np.where(known, out, near)
         out[~np.isfinite(out)] = np.nan

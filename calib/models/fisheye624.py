@@ -10,9 +10,8 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .. import _polynomial_kernel
 from .._arrays import as_points
-from ..base import CameraModel
+from ..base import CameraModel, kernels
 from ..registry import register
 
 #: Newton iterations of the tangential/thin-prism inversion, and the residual (normalised units,
@@ -145,7 +144,7 @@ class Fisheye624(CameraModel):
     def project(self, rays: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
         p = as_points(rays, 3, "rays")
         c, _ = self._polynomial_tuples
-        norm, valid = self._run_kernel(_polynomial_kernel.project_polynomial, p, 2, c,
+        norm, valid = self._run_kernel(kernels().project_polynomial, p, 2, c,
                                        self.theta_max, affine=_NORMALISED)
         with np.errstate(all="ignore"):
             a, b = self._distort(norm[..., 0], norm[..., 1])
@@ -164,7 +163,7 @@ class Fisheye624(CameraModel):
             a, b, ok = ad, bd, np.isfinite(ad) & np.isfinite(bd)
         norm = np.stack([np.where(ok, a, np.nan), np.where(ok, b, np.nan)], axis=-1)
         c, dc = self._polynomial_tuples
-        rays, valid = self._run_kernel(_polynomial_kernel.unproject_polynomial, norm, 3, c, dc,
+        rays, valid = self._run_kernel(kernels().unproject_polynomial, norm, 3, c, dc,
                                        self.theta_max, self.radius_max, self._theta_table,
                                        affine=_NORMALISED)
         valid &= ok & self._inside_radius(q)
