@@ -19,6 +19,7 @@ PEERS = {
     "engine-12k": "test_naive_loop_12k[math]",
     "engine-307k": "test_naive_loop_307k[math]",
     "render-640x480": "test_render_peer_farneback",
+    "eval-4-sequences": "test_eval_process_pool",
 }
 
 

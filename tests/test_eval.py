@@ -233,3 +233,13 @@ def test_additions_table_has_each_addition_and_the_defaults(sequences):
     paper = table.set_index("variant").loc["paper"]
     defaults = table.set_index("variant").loc["all (defaults)"]
     assert defaults["false positives cov"] <= paper["false positives cov"]
+
+
+def test_dask_workers_get_glibc_malloc_thresholds_back():
+    import platform
+
+    from fisheyemotion.eval.evaluate import restore_malloc_thresholds
+
+    if platform.libc_ver()[0] != "glibc":
+        pytest.skip("not glibc")
+    assert restore_malloc_thresholds() is True
