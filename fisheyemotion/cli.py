@@ -114,49 +114,52 @@ def run_detect(frames, camera: calib.CameraModel, matcher, out: Path, *,
     frame also in a window (q or Esc closes it; detection goes on)."""
     from .draw import annotate
     from .outputs import region_records
+    from .overlap import BackgroundWriter, read_ahead
     from .poses import write_tum
 
     (out / "likelihood").mkdir()
     if not write_video:
         (out / "annotated").mkdir()
     detector = MotionDetector(camera, road, params, roi=roi, camera_height=camera_height)
-    writer = None
+    video: list = []
     rows, stamps, used = [], [], []
     total = len(frames) or None
-    for frame in tqdm(frames, desc="detect", total=total, disable=not progress, leave=False):
-        name = Path(frame.name).stem if frame.name else f"{frame.index:06d}"
-        try:
-            stamp, pose = (None, None) if matcher is None else matcher(frame.index, frame.name,
-                                                                      frame.stamp)
-            result = detector.apply(frame.image, pose)
-            pose = detector.last_pose
-        except ValueError as exc:
-            raise CliError(f"frame {frame.index} ({name}): {exc}") from None
-        stamp = frame.stamp if frame.stamp is not None else stamp
-        stamps.append(frame.index if stamp is None else stamp)
-        used.append(pose)
-        if result is None:  # the frame gap is filling: nothing detected yet
-            shown = frame.image if frame.image.ndim == 3 else cv2.cvtColor(frame.image,
-                                                                           cv2.COLOR_GRAY2BGR)
-            mask = np.zeros(frame.image.shape[:2], np.uint8)
-            likelihood = np.zeros(frame.image.shape[:2], np.float32)
-        else:
-            shown, mask, likelihood = annotate(frame.image, result), result.mask, result.likelihood
-            for rec in region_records(result.regions, camera, pose, detector.road):
-                rows.append({"frame": frame.index, "name": frame.name, "timestamp": stamp, **rec})
-        np.savez_compressed(out / "likelihood" / f"{name}.npz", likelihood=likelihood, mask=mask)
-        if write_video:
-            if writer is None:
-                writer = cv2.VideoWriter(str(out / "annotated.mp4"),
-                                         cv2.VideoWriter_fourcc(*"mp4v"), fps or 15.0,
-                                         (shown.shape[1], shown.shape[0]))
-            writer.write(shown)
-        else:
-            cv2.imwrite(str(out / "annotated" / f"{name}.png"), shown)
-        if show:
-            show = _show(shown)
-    if writer is not None:
-        writer.release()
+    # Frames are read ahead and outputs written behind in two threads, overlapping the detection.
+    with BackgroundWriter() as background:
+        for frame in tqdm(read_ahead(frames), desc="detect", total=total, disable=not progress,
+                          leave=False):
+            name = Path(frame.name).stem if frame.name else f"{frame.index:06d}"
+            try:
+                stamp, pose = (None, None) if matcher is None else matcher(
+                    frame.index, frame.name, frame.stamp)
+                result = detector.apply(frame.image, pose)
+                pose = detector.last_pose
+            except ValueError as exc:
+                raise CliError(f"frame {frame.index} ({name}): {exc}") from None
+            stamp = frame.stamp if frame.stamp is not None else stamp
+            stamps.append(frame.index if stamp is None else stamp)
+            used.append(pose)
+            if result is None:  # the frame gap is filling: nothing detected yet
+                shown = frame.image if frame.image.ndim == 3 else cv2.cvtColor(
+                    frame.image, cv2.COLOR_GRAY2BGR)
+                mask = np.zeros(frame.image.shape[:2], np.uint8)
+                likelihood = np.zeros(frame.image.shape[:2], np.float32)
+            else:
+                shown, mask, likelihood = (annotate(frame.image, result), result.mask,
+                                           result.likelihood)
+                for rec in region_records(result.regions, camera, pose, detector.road):
+                    rows.append({"frame": frame.index, "name": frame.name, "timestamp": stamp,
+                                 **rec})
+            background.submit(np.savez_compressed, out / "likelihood" / f"{name}.npz",
+                              likelihood=likelihood, mask=mask)
+            if write_video:
+                background.submit(_write_video_frame, video, out / "annotated.mp4", shown, fps)
+            else:
+                background.submit(cv2.imwrite, str(out / "annotated" / f"{name}.png"), shown)
+            if show:
+                show = _show(shown)
+        if video:
+            background.submit(video[0].release)
     columns = ["frame", "name", "timestamp", "label", "x", "y", "w", "h", "area",
                "mean_likelihood", "u", "v", "azimuth_deg", "elevation_deg", "ground_distance_m"]
     table = pd.DataFrame(rows, columns=columns)
@@ -168,6 +171,15 @@ def run_detect(frames, camera: calib.CameraModel, matcher, out: Path, *,
                  f"{detector.road.offset:.3f} m" if detector.road.known else "road: none found")
     (out / "road.txt").write_text(road_note + "\n")
     return table
+
+
+def _write_video_frame(video: list, path: Path, image: np.ndarray, fps: float | None) -> None:
+    """Append ``image`` to the video at ``path``, opened on the first frame (``video`` holds the
+    writer)."""
+    if not video:
+        video.append(cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps or 15.0,
+                                     (image.shape[1], image.shape[0])))
+    video[0].write(image)
 
 
 WINDOW = "fisheyemotion detect"
