@@ -71,6 +71,10 @@ class SequenceResult:
     examples: dict = field(default_factory=dict)
 
 
+#: Flow (pixels) given to the exact-flow mode where the point leaves the camera's domain.
+OUT_OF_VIEW = 1e5
+
+
 def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
                       range_limit: float = 8.0, min_coverage: float = 0.0,
                       ablation: bool = True, exact_flow: bool = False,
@@ -118,7 +122,9 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
         g0, g1 = grays.pop(0), grays[-1]
         pose0, pose1 = moved @ seq.poses[k - gap], moved @ seq.poses[k]
         if renderer is not None:
-            flow, backward = np.nan_to_num(renderer.flow(k, gap=gap), nan=0.0), None
+            # Where the surface point leaves the camera's domain the exact flow is NaN: carry it
+            # out of the image (its cell is then not scored), not to a zero flow.
+            flow, backward = np.nan_to_num(renderer.flow(k, gap=gap), nan=OUT_OF_VIEW), None
         elif params.fb_check:
             flow, backward = main.flow(g0, g1, pose0, pose1, backward=True)
         else:
