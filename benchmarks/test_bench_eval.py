@@ -4,10 +4,10 @@
 from __future__ import annotations
 
 import pytest
+from fisheyemotion.eval.evaluate import evaluate
 
 import fisheyemotion as fm
 from fisheyemotion import synth
-from fisheyemotion.eval.evaluate import evaluate
 
 CAM = fm.calib.load(__file__.rsplit("/", 2)[0] + "/data/calib/front_kb_640x480.yaml")
 

@@ -25,6 +25,7 @@ __all__ = ["ADDITIONS", "ABLATION_WEIGHTS", "SequenceResult", "additions_table",
            "evaluate", "evaluate_sequence", "sequence_paths"]
 
 from .metrics import false_positive_surfaces, frame_metrics, likelihood_histograms, object_metrics
+from .pose_sources import Perturbation, pose_errors, poses_for
 
 #: The additions beyond the paper (docs/geometry.md), each alone on top of ``Params.paper()``;
 #: "all (defaults)" is ``Params()``.
@@ -79,7 +80,8 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
                       range_limit: float = 8.0, min_coverage: float = 0.0,
                       ablation: bool = True, exact_flow: bool = False,
                       world: str = "scene", road: str = "given",
-                      camera_height: float | None = None) -> SequenceResult:
+                      camera_height: float | None = None, poses: str = "true",
+                      noise: Perturbation | None = None) -> SequenceResult:
     """Detect on every consecutive frame pair of a sequence folder and score it.
 
     The detection on pair ``(k - gap, k)`` is on frame ``k``'s pixels (``gap = params.frame_gap``),
@@ -94,11 +96,17 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
     write it) or ``raised`` (z up with the road at z = -1.7 m, and rotated 30 deg about z).
     ``road``: ``given`` (the scene's road, in that frame) or ``auto`` (estimated from the
     stream, :mod:`fisheyemotion.ground`; ``camera_height`` if known).
+
+    ``poses``: ``true``, ``estimated`` (from the images) or ``perturbed`` (``noise``), refined
+    first when ``params.pose_refinement`` is not ``off`` (:mod:`.pose_sources`); the frames table
+    gets each pair's relative rotation and translation-direction errors.
     """
     params = Params() if params is None else params
     seq = Sequence(path)
     cam = seq.camera
     roi = seq.roi()
+    given = poses_for(seq, poses, params, noise=noise, roi=roi)
+    errors = pose_errors(given, seq.poses, params.frame_gap).set_index("frame")
     valid = cam.valid_pixel_mask() & (True if roi is None else roi > 0)
     moved, road_given = world_transform(world, seq.poses[0])
     if road not in ("given", "auto"):
@@ -120,7 +128,7 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
     for k in range(gap, len(seq)):
         grays.append(to_gray(seq.frame(k), "frame"))
         g0, g1 = grays.pop(0), grays[-1]
-        pose0, pose1 = moved @ seq.poses[k - gap], moved @ seq.poses[k]
+        pose0, pose1 = moved @ given[k - gap], moved @ given[k]
         if renderer is not None:
             # Where the surface point leaves the camera's domain the exact flow is NaN: carry it
             # out of the image (its cell is then not scored), not to a zero flow.
@@ -146,7 +154,8 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
         obj_rows += rows
         fm = frame_metrics(det.mask, gt, valid)
         fp_pix = (det.mask > 0) & (gt == 0) & valid
-        fm.update({"sequence": seq.name, "frame": k, "ego_static": det.static_camera})
+        fm.update({"sequence": seq.name, "frame": k, "ego_static": det.static_camera,
+                   **errors.loc[k].to_dict()})
         fm.update({f"fp_{n}": float(weighted[n][fp_pix].sum()) for n in CONSTRAINT_NAMES})
         surfaces = false_positive_surfaces(det.mask, gt, valid, ids, kinds)
         fm.update({f"fp_on_{name}": v for name, v in surfaces.items()})

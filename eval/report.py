@@ -451,6 +451,16 @@ def write_report(results: list[SequenceResult], out: str | Path, params: Params,
     md += ["", "## Ablation: the paper's weights and each constraint alone", "",
            "The same flow and settings, only the weights of the likelihood changed.", "",
            _percent_table(abl_show, ["flow", "variant"]), ""]
+    frames = tables["frames"]
+    if "rotation_error_deg" in frames and frames.rotation_error_deg.fillna(0).gt(0).any():
+        errs = frames.groupby("sequence")[["rotation_error_deg", "direction_error_deg"]].median()
+        md += ["## Pose errors", "",
+               f"Median error of the relative pose the detector was given for each frame pair "
+               f"({params.frame_gap} frames apart), against the true one: rotation and "
+               "translation direction, degrees.", "",
+               errs.rename(columns={"rotation_error_deg": "rotation (deg)",
+                                    "direction_error_deg": "translation direction (deg)"})
+               .reset_index().to_markdown(index=False, floatfmt=".3f"), ""]
     md += ["## Run settings", "", "| parameter | value |", "|---|---|"]
     md += [f"| {k} | {v} |" for k, v in params.to_dict().items()]
     if commands:

@@ -131,3 +131,40 @@ def test_pose_refinement_repairs_noisy_rotations(frames):
     # 1.9 % with the noisy ones refined.
     assert flagged["noisy"] > flagged["true"] + 0.03  # the noise costs false alarms ...
     assert flagged["refined"] < flagged["true"] + 0.01  # ... which the refinement removes
+
+
+@pytest.fixture(scope="module")
+def ego_sequence(tmp_path_factory):
+    return synth.write_sequence(tmp_path_factory.mktemp("ego") / "ego", CAM, SCENE,
+                                frames=6, flow=False, progress=False, supersample=1)
+
+
+def test_eval_pose_sources_true_estimated_perturbed(ego_sequence):
+    from fisheyemotion.eval.pose_sources import Perturbation, pose_errors, poses_for
+
+    from fisheyemotion.sequence import Sequence
+
+    seq = Sequence(ego_sequence)
+    params = fm.Params(frame_gap=1)
+    true = poses_for(seq, "true", params)
+    assert np.array_equal(true, seq.poses)
+    assert pose_errors(true, seq.poses, 1)[["rotation_error_deg", "direction_error_deg"]] \
+        .abs().max().max() < 1e-6
+    # From the images: every pair's rotation within 0.2 deg, direction within 3 deg.
+    errors = pose_errors(poses_for(seq, "estimated", params), seq.poses, 1)
+    assert errors.rotation_error_deg.max() < 0.2 and errors.direction_error_deg.max() < 3.0
+    # Noise of the stated size: each frame's orientation off by exactly rotation_deg.
+    noisy = poses_for(seq, "perturbed", params, noise=Perturbation(rotation_deg=0.4,
+                                                                   translation=0.0,
+                                                                   time_offset_s=0.0))
+    for k in range(len(seq)):
+        assert _angle(noisy[k, :3, :3].T @ seq.poses[k, :3, :3]) == pytest.approx(0.4, abs=1e-6)
+    errs = pose_errors(noisy, seq.poses, 1).rotation_error_deg
+    assert errs.max() <= 0.8 + 1e-6 and errs.median() > 0.1
+    # Refinement brings the rotation back to what the images say.
+    refined = pose_errors(poses_for(seq, "perturbed", params.replace(pose_refinement="on"),
+                                    noise=Perturbation(rotation_deg=0.4, translation=0.0,
+                                                       time_offset_s=0.0)), seq.poses, 1)
+    assert refined.rotation_error_deg.iloc[1:].median() < errs.iloc[1:].median() / 2
+    with pytest.raises(ValueError, match="poses"):
+        poses_for(seq, "odometry", params)

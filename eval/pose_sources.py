@@ -1,0 +1,152 @@
+"""The poses the detector is given in an evaluation: the true ones, estimated from the images,
+or the true ones with realistic noise; optionally refined on the images first.
+
+- ``true``: the rendered sequence's poses.
+- ``estimated``: rotation and translation direction of every consecutive frame pair from the
+  images (:class:`fisheyemotion.egomotion.PoseTracker`, the estimator streams without poses
+  use), chained from the first true pose; the length of each step from the true poses (the
+  speed that wheel odometry gives: two views fix no scale).
+- ``perturbed``: the true poses with independent noise on every frame (:class:`Perturbation`:
+  rotation, translation relative to the frame-to-frame step, and a time offset).
+
+Refinement (``Params.pose_refinement`` ``on`` or ``auto``) runs the detector's own refinement
+(:meth:`fisheyemotion.MotionDetector.apply` does it per frame) over the frames first.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from fisheyemotion.detect import MotionDetector
+from fisheyemotion.egomotion import PoseTracker
+from fisheyemotion.frames import to_gray
+from fisheyemotion.params import Params
+from fisheyemotion.poses import Trajectory
+from fisheyemotion.sequence import Sequence
+
+__all__ = ["POSE_SOURCES", "Perturbation", "pose_errors", "poses_for"]
+
+POSE_SOURCES = ("true", "estimated", "perturbed")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Perturbation:
+    """Noise of the ``perturbed`` poses, as odometry or a loosely synchronised IMU gives it.
+
+    Attributes
+    ----------
+    rotation_deg : float
+        Angle of a rotation about a random axis applied to every frame's orientation.
+    translation : float
+        Position error per frame, as a share of the frame-to-frame step, random direction.
+    time_offset_s : float
+        The poses are those of this many seconds later (interpolated).
+    seed : int
+    """
+
+    rotation_deg: float = 0.3
+    translation: float = 0.03
+    time_offset_s: float = 0.005
+    seed: int = 0
+
+
+def _rotation(axis: NDArray, angle: float) -> NDArray[np.float64]:
+    import cv2
+
+    return cv2.Rodrigues(np.asarray(axis, np.float64) / np.linalg.norm(axis) * angle)[0]
+
+
+def _unit(rng: np.random.Generator) -> NDArray[np.float64]:
+    v = rng.normal(size=3)
+    return v / np.linalg.norm(v)
+
+
+def perturbed(seq: Sequence, noise: Perturbation) -> NDArray[np.float64]:
+    """The true poses with ``noise`` (see :class:`Perturbation`)."""
+    truth = seq.poses
+    stamps = seq.timestamps
+    if noise.time_offset_s:
+        late = Trajectory(truth, stamps=stamps).at(stamps + noise.time_offset_s,
+                                                   max_gap=float(np.max(np.diff(stamps))))
+    else:
+        late = truth.copy()
+    steps = np.linalg.norm(np.diff(truth[:, :3, 3], axis=0), axis=-1)
+    step = np.r_[steps[:1], steps] if len(steps) else np.zeros(1)
+    rng = np.random.default_rng(noise.seed)
+    out = late.copy()
+    for k in range(len(out)):
+        out[k, :3, :3] = out[k, :3, :3] @ _rotation(_unit(rng), math.radians(noise.rotation_deg))
+        out[k, :3, 3] += noise.translation * step[k] * _unit(rng)
+    return out
+
+
+def estimated(seq: Sequence, mask: NDArray | None) -> NDArray[np.float64]:
+    """Poses from the images, each step scaled to the true step's length (see module doc)."""
+    truth = seq.poses
+    tracker = PoseTracker(seq.camera, mask=mask)
+    out = np.empty_like(truth)
+    out[0] = truth[0]
+    tracker.step(to_gray(seq.frame(0), "frame"))
+    for k in range(1, len(seq)):
+        rel = tracker.step(to_gray(seq.frame(k), "frame"))  # cam_k_from_cam_k-1, unit step
+        length = np.linalg.norm(truth[k, :3, 3] - truth[k - 1, :3, 3])
+        if rel is None:  # too little motion or no model: taken to stand still
+            out[k] = out[k - 1]
+            continue
+        rel = rel.copy()
+        rel[:3, 3] *= length
+        out[k] = out[k - 1] @ np.linalg.inv(rel)
+    return out
+
+
+def refined(seq: Sequence, poses: NDArray, params: Params, mask: NDArray | None
+            ) -> NDArray[np.float64]:
+    """``poses`` refined on the images by the detector's own refinement, frame by frame."""
+    detector = MotionDetector(seq.camera, params=params, roi=mask)
+    return np.stack([detector._refined(to_gray(seq.frame(k), "frame"), poses[k])
+                     for k in range(len(seq))])
+
+
+def poses_for(seq: Sequence, source: str, params: Params, *, noise: Perturbation | None = None,
+              roi: NDArray | None = None) -> NDArray[np.float64]:
+    """The poses ``(N, 4, 4)`` (scene frame) the detector is given for ``source``, refined when
+    ``params.pose_refinement`` says so."""
+    if source not in POSE_SOURCES:
+        raise ValueError(f"poses: expected one of {', '.join(POSE_SOURCES)}, got {source!r}")
+    if source == "true":
+        poses = seq.poses
+    elif source == "estimated":
+        poses = estimated(seq, None if roi is None else roi > 0)
+    else:
+        poses = perturbed(seq, noise or Perturbation())
+    if params.pose_refinement != "off":
+        poses = refined(seq, poses, params, roi)
+    return poses
+
+
+def _angle_deg(r: NDArray) -> float:
+    """Rotation angle of ``r`` (degrees), precise near 0 (atan2 of sine and cosine)."""
+    sine = 0.5 * math.hypot(r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1])
+    return math.degrees(math.atan2(sine, 0.5 * (np.trace(r) - 1)))
+
+
+def pose_errors(poses: NDArray, truth: NDArray, gap: int) -> pd.DataFrame:
+    """Errors of the relative pose of every detected pair ``(k - gap, k)``: rotation (degrees)
+    and translation direction (degrees; NaN where the true camera stood still)."""
+    rows = []
+    for k in range(gap, len(truth)):
+        est = np.linalg.inv(poses[k]) @ poses[k - gap]
+        tru = np.linalg.inv(truth[k]) @ truth[k - gap]
+        t_est, t_tru = est[:3, 3], tru[:3, 3]
+        n_est, n_tru = np.linalg.norm(t_est), np.linalg.norm(t_tru)
+        direction = (math.degrees(math.acos(float(np.clip(t_est @ t_tru / (n_est * n_tru),
+                                                          -1, 1))))
+                     if n_est > 1e-9 and n_tru > 1e-6 else math.nan)
+        rows.append({"frame": k, "rotation_error_deg": _angle_deg(est[:3, :3].T @ tru[:3, :3]),
+                     "direction_error_deg": direction})
+    return pd.DataFrame(rows)
