@@ -108,47 +108,18 @@ def grid_transfer(cell_flow: NDArray, order: NDArray, grid: int, *,
     ndarray of intp, shape (rows, cols)
         Flat index of the source cell, -1 where none.
     """
+    from ._transfer_kernel import transfer  # numba on first use: a light import
+
     rows, cols = order.shape
     centres = grid_centres(cols * grid, rows * grid, grid)
     target = centres + cell_flow
     with np.errstate(invalid="ignore"):
-        c = np.floor(target[..., 0] / grid)
-        r = np.floor(target[..., 1] / grid)
-        ok = (c >= 0) & (c < cols) & (r >= 0) & (r < rows)
-    rank = np.nan_to_num(order, nan=-np.inf).ravel()
-    fill_rank = np.nan_to_num(order, nan=np.inf).ravel()  # gaps prefer a valid source
-    src = np.flatnonzero(ok.ravel())
-    src = src[np.argsort(rank[src], kind="stable")]  # the largest last: it wins the assignment
-    dest = (r.ravel()[src] * cols + c.ravel()[src]).astype(np.intp)
-    out = np.full(rows * cols, -1, np.intp)
-    out[dest] = src
-    out = out.reshape(rows, cols)
-    empty = out < 0
-    if empty.any():
-        k = reach
-        padded = np.pad(out, k, constant_values=-1)
-
-        def nearest(dr: int, dc: int) -> NDArray[np.intp]:
-            """The first landed cell within ``reach`` steps in direction (dr, dc)."""
-            found = np.full_like(out, -1)
-            for d in range(1, k + 1):
-                cand = padded[k + d * dr:k + d * dr + rows, k + d * dc:k + d * dc + cols]
-                found = np.where(found < 0, cand, found)
-            return found
-
-        best, best_rank = np.full_like(out, -1), np.full(out.shape, np.inf)
-        # Only gaps between landed cells on both sides of a line through them (a region that
-        # expands); a gap with landed cells on one side only is uncovered background.
-        for a, b in (((0, -1), (0, 1)), ((-1, 0), (1, 0)), ((-1, -1), (1, 1)), ((-1, 1), (1, -1))):
-            pa, pb = nearest(*a), nearest(*b)
-            enclosed = (pa >= 0) & (pb >= 0)
-            for cand in (pa, pb):
-                cand_rank = np.where(enclosed, fill_rank[cand], np.inf)
-                better = enclosed & ((cand_rank < best_rank) | (best < 0))
-                best = np.where(better, cand, best)
-                best_rank = np.where(better, cand_rank, best_rank)
-        out = np.where(empty, best, out)
-    return out
+        col = np.floor(target[..., 0] / grid)
+        row = np.floor(target[..., 1] / grid)
+    rank = np.nan_to_num(order, nan=-np.inf).ravel().astype(np.float64)
+    fill_rank = np.nan_to_num(order, nan=np.inf).ravel().astype(np.float64)  # gaps prefer a valid source
+    return transfer(np.ascontiguousarray(col, np.float64), np.ascontiguousarray(row, np.float64),
+                    rank, fill_rank, int(reach))
 
 
 def grid_gather(cells: NDArray, source: NDArray[np.intp], fill=np.nan) -> NDArray:
