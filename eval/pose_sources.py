@@ -2,10 +2,10 @@
 or the true ones with realistic noise; optionally refined on the images first.
 
 - ``true``: the rendered sequence's poses.
-- ``estimated``: rotation and translation direction of every consecutive frame pair from the
-  images (:class:`fisheyemotion.egomotion.PoseTracker`, the estimator streams without poses
-  use), chained from the first true pose; the length of each step from the true poses (the
-  speed that wheel odometry gives: two views fix no scale).
+- ``estimated``: every consecutive frame pair's rotation and translation direction from the
+  images, and the step's length from the road and the camera's true height
+  (:class:`fisheyemotion.egomotion.PoseTracker` with ``camera_height``, what a stream without
+  poses runs), chained from the first true pose.
 - ``perturbed``: the true poses with independent noise on every frame (:class:`Perturbation`:
   rotation, translation relative to the frame-to-frame step, and a time offset).
 
@@ -27,6 +27,7 @@ from fisheyemotion.egomotion import PoseTracker
 from fisheyemotion.frames import to_gray
 from fisheyemotion.params import Params
 from fisheyemotion.poses import Trajectory
+from fisheyemotion.road import Road
 from fisheyemotion.sequence import Sequence
 
 __all__ = ["POSE_SOURCES", "Perturbation", "pose_errors", "poses_for"]
@@ -86,22 +87,13 @@ def perturbed(seq: Sequence, noise: Perturbation) -> NDArray[np.float64]:
 
 
 def estimated(seq: Sequence, mask: NDArray | None) -> NDArray[np.float64]:
-    """Poses from the images, each step scaled to the true step's length (see module doc)."""
+    """Poses from the images, each step's length from the road and the true camera height
+    (see module doc), chained from the first true pose."""
     truth = seq.poses
-    tracker = PoseTracker(seq.camera, mask=mask)
-    out = np.empty_like(truth)
-    out[0] = truth[0]
-    tracker.step(to_gray(seq.frame(0), "frame"))
-    for k in range(1, len(seq)):
-        rel = tracker.step(to_gray(seq.frame(k), "frame"))  # cam_k_from_cam_k-1, unit step
-        length = np.linalg.norm(truth[k, :3, 3] - truth[k - 1, :3, 3])
-        if rel is None:  # too little motion or no model: taken to stand still
-            out[k] = out[k - 1]
-            continue
-        rel = rel.copy()
-        rel[:3, 3] *= length
-        out[k] = out[k - 1] @ np.linalg.inv(rel)
-    return out
+    height = float(Road().height(truth[0, :3, 3]))  # the scenes' road is z = 0
+    tracker = PoseTracker(seq.camera, mask=mask, camera_height=height)
+    chained = [tracker(to_gray(seq.frame(k), "frame")) for k in range(len(seq))]
+    return np.stack([truth[0] @ pose for pose in chained])
 
 
 def refined(seq: Sequence, poses: NDArray, params: Params, mask: NDArray | None

@@ -237,10 +237,16 @@ def cmd_detect(args: argparse.Namespace) -> int:
         poses_path = _poses_file(source, args.poses)
         trajectory = None if poses_path is None else read_poses(poses_path)
     if trajectory is None:
+        if args.camera_height is not None and args.road == "auto":
+            scale = (f"each step scaled by the road {args.camera_height:g} m below the camera; "
+                     "the road estimated")
+            road = "auto"
+        else:
+            scale = "scale unknown without --camera-height: no road terms"
+            road = Road.unknown()
         print("fisheyemotion detect: no poses given or found in the input: estimating them from "
-              "the images (scale unknown: no road terms); written to OUT/poses.txt",
-              file=sys.stderr)
-        matcher, road = None, Road.unknown()
+              f"the images ({scale}); written to OUT/poses.txt", file=sys.stderr)
+        matcher = None
     else:
         if args.poses_of == "rig":
             if extrinsic is None:
@@ -353,7 +359,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "(default: %(default)s)")
     p.add_argument("--camera-height", type=float, metavar="METRES",
                    help="the camera's height above the road, when known: checks the estimated "
-                        "road (default: unknown)")
+                        "road and, without poses, gives the estimated steps their length in "
+                        "metres (default: unknown)")
     p.add_argument("--params", help="YAML/JSON file of Params, or 'paper' (default: the "
                    "defaults, grid and areas scaled to the camera's resolution)")
     p.add_argument("--roi", help="mask image of pixels to use (default: INPUT/roi.png if present)")

@@ -164,6 +164,7 @@ class MotionDetector:
             raise ValueError("camera: expected a fisheyemotion.calib camera model, "
                              f"got {type(camera).__name__}")
         self.camera = camera
+        self.camera_height = camera_height
         self.ground: GroundEstimator | None = None
         if isinstance(road, str):
             if road != "auto":
@@ -230,9 +231,11 @@ class MotionDetector:
 
         Returns None until that many frames have been seen. Only the last ``frame_gap`` frames
         and poses are kept. ``pose=None``: the pose is estimated from the images
-        (:mod:`fisheyemotion.egomotion`: the world is the first camera's frame, one unit of
-        translation per frame); the scale being unknown, the road terms are then off
-        (``Road.unknown()``, said once as a warning). :attr:`last_pose` is the pose used.
+        (:mod:`fisheyemotion.egomotion`; the world is the first camera's frame). With
+        ``road='auto'`` and ``camera_height`` each step's length comes from the road in metres
+        and the road is estimated as with given poses; otherwise one unit of translation per
+        frame, the scale unknown, and the road terms off (``Road.unknown()``, said once as a
+        warning). :attr:`last_pose` is the pose used.
         """
         gray = to_gray(frame, "frame", size=self.size)
         if pose is None:
@@ -283,10 +286,14 @@ class MotionDetector:
             if self._history:
                 raise ValueError("pose: this stream was given poses; reset() before leaving "
                                  "them out")
-            self._tracker = PoseTracker(self.camera, mask=self._pixel_valid)
-            if self.road.known or self.ground is not None:
-                warnings.warn("pose: estimating poses from the images, whose scale is unknown: "
-                              "the road terms are off (Road.unknown())", stacklevel=3)
+            self._tracker = PoseTracker(self.camera, mask=self._pixel_valid,
+                                        camera_height=self.camera_height)
+            if self.camera_height is not None and self.ground is not None:
+                pass  # metric steps from the road: the road is estimated in the same world
+            elif self.road.known or self.ground is not None:
+                warnings.warn("pose: estimating poses from the images, whose scale is unknown "
+                              "without camera_height: the road terms are off (Road.unknown())",
+                              stacklevel=3)
                 self.road, self.ground = Road.unknown(), None
         return self._tracker(gray, self._last_mask)
 

@@ -106,6 +106,26 @@ def test_the_cli_without_poses_estimates_and_writes_them(tmp_path, frames):
     poses = fm.poses.read_poses(tmp_path / "out" / "poses.txt").poses
     assert len(poses) == len(frames)
     np.testing.assert_allclose(poses[0], np.eye(4))
+    # With the camera's height the estimated steps are metres.
+    assert main(["detect", str(folder), "--calib", str(tmp_path / "calib.yaml"), "--out",
+                 str(tmp_path / "out2"), "--quiet", "--params", str(tmp_path / "p.yaml"),
+                 "--camera-height", "1.0"]) == 0
+    poses = fm.poses.read_poses(tmp_path / "out2" / "poses.txt").poses
+    true_steps = np.linalg.norm(np.diff([f.pose[:3, 3] for f in frames], axis=0), axis=-1)
+    np.testing.assert_allclose(np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=-1),
+                               true_steps, rtol=0.06)
+
+
+def test_a_stream_without_poses_but_with_the_camera_height_keeps_its_road_terms(frames):
+    import warnings
+
+    roi = synth.Renderer(CAM, SCENE, supersample=1).roi()
+    det = fm.MotionDetector(CAM, "auto", fm.Params(frame_gap=1), roi=roi, camera_height=1.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "road terms are off" warning
+        for f in frames:
+            det.apply(f.image)
+    assert det.ground is not None and det._tracker.metric
 
 
 def test_pose_refinement_repairs_noisy_rotations(frames):
@@ -168,3 +188,38 @@ def test_eval_pose_sources_true_estimated_perturbed(ego_sequence):
     assert refined.rotation_error_deg.iloc[1:].median() < errs.iloc[1:].median() / 2
     with pytest.raises(ValueError, match="poses"):
         poses_for(seq, "odometry", params)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_road_scale_of_exact_rays_is_the_baseline_in_metres(seed):
+    from fisheyemotion.egomotion import road_scale
+
+    rng = np.random.default_rng(seed)
+    height = rng.uniform(0.5, 2.5)
+    pose0 = camera_pose(rng, height=height)
+    pose1 = moved(pose0, [rng.uniform(0.3, 1.5), 0.0, 0.0], yaw_deg=rng.uniform(-3, 3))
+    # Road well below the horizon (within 2.5 camera heights ahead), and farther road.
+    road = np.c_[pose0[:2, 3] + rng.uniform([0.6 * height, -2 * height], [2.5 * height, 2 * height],
+                                            size=(150, 2)), np.zeros(150)]
+    road = np.r_[road, np.c_[pose0[:2, 3] + rng.uniform([5, -6], [20, 6], size=(100, 2)),
+                             np.zeros(100)]]
+    wall = pose0[:3, 3] + np.c_[rng.uniform(3, 6, 60), rng.uniform(-2, 2, 60),
+                                rng.uniform(-height + 0.2, 0.5, 60)]  # obstacles: shallower
+    points = np.r_[road, wall]
+    truth = np.linalg.inv(pose1) @ pose0
+    unit = truth.copy()
+    unit[:3, 3] /= np.linalg.norm(truth[:3, 3])
+    scale = road_scale(rays_of(points, pose0), rays_of(points, pose1), unit, height)
+    assert scale == pytest.approx(np.linalg.norm(truth[:3, 3]), rel=1e-6)
+
+
+def test_a_tracker_given_the_camera_height_steps_in_metres(frames):
+    roi = synth.Renderer(CAM, SCENE, supersample=1).roi() > 0
+    tracker = PoseTracker(CAM, mask=roi, camera_height=1.0)
+    est = np.stack([tracker(np.ascontiguousarray(f.image[..., 1])) for f in frames])
+    true_steps = np.linalg.norm(np.diff([f.pose[:3, 3] for f in frames], axis=0), axis=-1)
+    est_steps = np.linalg.norm(np.diff(est[:, :3, 3], axis=0), axis=-1)
+    assert tracker.metric
+    np.testing.assert_allclose(est_steps, true_steps, rtol=0.06)  # 4 % at 480x360, fx 150
+    with pytest.raises(ValueError, match="camera_height"):
+        PoseTracker(CAM, camera_height=-1.0)
