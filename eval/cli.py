@@ -34,6 +34,15 @@ def _params(args: argparse.Namespace) -> Params:
     return Params.load(value) if value else Params()
 
 
+def _height(text: str) -> float | str:
+    if text == "scene":
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected metres or 'scene', got {text!r}") from None
+
+
 def _flows(text: str) -> list[str]:
     flows = [f.strip() for f in text.split(",") if f.strip()]
     bad = [f for f in flows if f not in ("farneback", "dis")]
@@ -181,9 +190,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--road", choices=("given", "auto"), default="given",
                    help="the scene's road in that frame, or estimated from the stream "
                    "(default: %(default)s)")
-    p.add_argument("--camera-height", type=float, metavar="METRES",
-                   help="with --road auto: the camera's height above the road, when known "
-                        "(default: unknown)")
+    p.add_argument("--camera-height", type=_height, metavar="METRES",
+                   help="with --road auto: the camera's height above the road, when known, or "
+                        "'scene' for each sequence's own (default: unknown)")
     p.add_argument("--poses", choices=("true", "estimated", "perturbed"), default="true",
                    help="the poses the detector is given: the true ones, estimated from the "
                         "images (speed from the true poses), or the true ones with noise "

@@ -80,7 +80,7 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
                       range_limit: float = 8.0, min_coverage: float = 0.0,
                       ablation: bool = True, exact_flow: bool = False,
                       world: str = "scene", road: str = "given",
-                      camera_height: float | None = None, poses: str = "true",
+                      camera_height: float | str | None = None, poses: str = "true",
                       noise: Perturbation | None = None) -> SequenceResult:
     """Detect on every consecutive frame pair of a sequence folder and score it.
 
@@ -95,7 +95,8 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
     (z up, road at z = 0), ``first_camera`` (the first camera's frame, as most VO/SLAM systems
     write it) or ``raised`` (z up with the road at z = -1.7 m, and rotated 30 deg about z).
     ``road``: ``given`` (the scene's road, in that frame) or ``auto`` (estimated from the
-    stream, :mod:`fisheyemotion.ground`; ``camera_height`` if known).
+    stream, :mod:`fisheyemotion.ground`; ``camera_height`` if known, in metres, or ``"scene"``
+    for each sequence's own, read off its true first pose).
 
     ``poses``: ``true``, ``estimated`` (from the images) or ``perturbed`` (``noise``), refined
     first when ``params.pose_refinement`` is not ``off`` (:mod:`.pose_sources`); the frames table
@@ -105,6 +106,10 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
     seq = Sequence(path)
     cam = seq.camera
     roi = seq.roi()
+    if camera_height == "scene":
+        camera_height = float(Road().height(seq.poses[0, :3, 3]))
+    elif camera_height is not None and not isinstance(camera_height, int | float):
+        raise ValueError(f"camera_height: expected metres or 'scene', got {camera_height!r}")
     given = poses_for(seq, poses, params, noise=noise, roi=roi)
     errors = pose_errors(given, seq.poses, params.frame_gap).set_index("frame")
     valid = cam.valid_pixel_mask() & (True if roi is None else roi > 0)
