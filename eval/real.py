@@ -8,7 +8,9 @@ consecutive frames are compared (``frame_gap=1``); the rest are the defaults, sc
 camera's resolution.
 
 The moving object of the office clip is the wearer's arm, one region: the share of valid pixels
-flagged *outside the largest region* bounds the static background flagged.
+flagged *outside the largest region* bounds the static background flagged. Each clip runs twice:
+with its VIO poses, and with none (estimated from the images, :mod:`fisheyemotion.egomotion`),
+where the estimated rotations are compared with the VIO's.
 """
 
 from __future__ import annotations
@@ -27,6 +29,8 @@ from fisheyemotion.inputs import ImageFolder
 from fisheyemotion.params import Params
 from fisheyemotion.poses import PoseMatcher, read_poses
 from fisheyemotion.road import Road
+
+from .pose_sources import pose_errors
 
 __all__ = ["RealClip", "find_clips", "run_real"]
 
@@ -60,30 +64,42 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
     for clip in find_clips(data):
         cam = calib.load(clip.calibration, clip.camera)
         matcher = PoseMatcher(read_poses(clip.poses))
-        det = MotionDetector(cam, Road.unknown(), params.for_camera(cam))
         valid = cam.valid_pixel_mask()
-        flagged, outside, regions, last = [], [], [], None
         frames = ImageFolder(clip.folder)
-        for f in frames:
-            result = det.apply(f.image, matcher(f.index, f.name, f.stamp)[1])
-            if result is None:
-                continue
-            mask = (result.mask > 0) & valid
-            labels = label(mask)
-            biggest = np.bincount(labels.ravel())[1:].max() if labels.max() else 0
-            flagged.append(mask.sum() / valid.sum())
-            outside.append((mask.sum() - biggest) / valid.sum())
-            regions.append(len(result.regions))
-            last = (f.image, result, f"{clip.name} / {clip.camera} #{f.index}")
-        rows.append({"clip": clip.name, "camera": clip.camera, "model": cam.name,
-                     "size": f"{cam.width}x{cam.height}", "frames": len(frames),
-                     "detections": len(flagged),
-                     "flagged %": 100 * float(np.mean(flagged)) if flagged else np.nan,
-                     "outside the largest region %": 100 * float(np.mean(outside))
-                     if outside else np.nan,
-                     "regions per frame": float(np.mean(regions)) if regions else np.nan})
-        if last is not None:
-            shown.append(last)
+        row = {"clip": clip.name, "camera": clip.camera, "model": cam.name,
+               "size": f"{cam.width}x{cam.height}", "frames": len(frames)}
+        for given in (True, False):  # the clip's VIO poses, then none (estimated)
+            det = MotionDetector(cam, Road.unknown(), params.for_camera(cam))
+            flagged, outside, regions, used, vio = [], [], [], [], []
+            for f in frames:
+                pose = matcher(f.index, f.name, f.stamp)[1]
+                result = det.apply(f.image, pose if given else None)
+                used.append(det.last_pose)
+                vio.append(pose)
+                if result is None:
+                    continue
+                mask = (result.mask > 0) & valid
+                labels = label(mask)
+                biggest = np.bincount(labels.ravel())[1:].max() if labels.max() else 0
+                flagged.append(mask.sum() / valid.sum())
+                outside.append((mask.sum() - biggest) / valid.sum())
+                regions.append(len(result.regions))
+                if given:
+                    last = (f.image, result, f"{clip.name} / {clip.camera} #{f.index}")
+            if given:
+                row.update({"detections": len(flagged),
+                            "flagged %": 100 * float(np.mean(flagged)) if flagged else np.nan,
+                            "outside the largest region %": 100 * float(np.mean(outside))
+                            if outside else np.nan,
+                            "regions per frame": float(np.mean(regions)) if regions else np.nan})
+                shown.append(last)
+            else:
+                errors = pose_errors(np.array(used), np.array(vio), 1).rotation_error_deg
+                row.update({"no poses: outside the largest region %":
+                            100 * float(np.mean(outside)) if outside else np.nan,
+                            "no poses: rotation error vs VIO, median / max (deg)":
+                            f"{errors.median():.2f} / {errors.max():.2f}"})
+        rows.append(row)
     fig = None
     if shown:
         fig = Figure(figsize=(3.4 * len(shown), 3.6), layout="constrained")

@@ -30,7 +30,7 @@ from .calib.base import CameraModel
 from .calib.transforms import make_transform
 from .tracks import track_corners
 
-__all__ = ["PoseTracker", "relative_pose", "road_scale"]
+__all__ = ["PoseTracker", "dominant_background_pose", "relative_pose", "road_scale"]
 
 #: Degrees below the level horizon from which correspondences are taken to lie on the road.
 ROAD_ELEVATION = 20.0
@@ -41,6 +41,10 @@ EPIPOLAR_PIXELS = 1.5
 #: Degrees of parallax a road correspondence needs (its range error is about the flow error
 #: over this).
 MIN_PARALLAX = 1.0
+#: Grid (per side) over which the spread of a pose hypothesis' inliers is counted.
+SPREAD_CELLS = 8
+#: Fewest outliers of the first hypothesis to fit a second one to.
+MIN_SECOND_HYPOTHESIS = 30
 #: Fewest road correspondences for a scale estimate.
 MIN_ROAD_POINTS = 15
 
@@ -144,6 +148,46 @@ def road_scale(rays0: NDArray[np.float64], rays1: NDArray[np.float64],
     return camera_height / height
 
 
+def _spread(pixels: NDArray[np.float64], shape: tuple[int, ...]) -> int:
+    """Cells of a ``SPREAD_CELLS`` x ``SPREAD_CELLS`` grid over the image that ``pixels`` occupy."""
+    h, w = shape[:2]
+    c = np.clip((pixels[:, 0] * SPREAD_CELLS / w).astype(int), 0, SPREAD_CELLS - 1)
+    r = np.clip((pixels[:, 1] * SPREAD_CELLS / h).astype(int), 0, SPREAD_CELLS - 1)
+    return len(np.unique(r * SPREAD_CELLS + c))
+
+
+def dominant_background_pose(rays0: NDArray[np.float64], rays1: NDArray[np.float64],
+                             pixels0: NDArray[np.float64], shape: tuple[int, ...]
+                             ) -> tuple[NDArray[np.float64] | None, NDArray[np.bool_]]:
+    """:func:`relative_pose`, checked against a second hypothesis fitted to its outliers: the one
+    whose inliers cover more of the image wins. The static background spans the view; a moving
+    object close to the camera (a wearer's arm, a passing bus) can hold more tracked corners, but
+    in a compact part of the image.
+
+    Parameters
+    ----------
+    rays0, rays1 : ndarray, shape (N, 3)
+    pixels0 : ndarray, shape (N, 2)
+        The corners' pixels in the first frame.
+    shape : tuple
+        The image's shape.
+    """
+    first, inliers = relative_pose(rays0, rays1)
+    if first is None:
+        return first, inliers
+    rest = ~inliers
+    if rest.sum() < MIN_SECOND_HYPOTHESIS:
+        return first, inliers
+    second, inliers2 = relative_pose(rays0[rest], rays1[rest])
+    if second is None:
+        return first, inliers
+    others = np.zeros_like(inliers)
+    others[np.flatnonzero(rest)[inliers2]] = True
+    if _spread(pixels0[others], shape) > _spread(pixels0[inliers], shape):
+        return second, others
+    return first, inliers
+
+
 class PoseTracker:
     """``world_from_cam`` for each frame of a stream, the world being the first camera's frame.
 
@@ -198,7 +242,7 @@ class PoseTracker:
         moved = np.linalg.norm(u1 - u0, axis=-1)
         if ok.sum() < 8 or np.median(moved[ok]) <= 0.3:  # a still camera has no baseline
             return None
-        transform, inliers = relative_pose(r0[ok], r1[ok])
+        transform, inliers = dominant_background_pose(r0[ok], r1[ok], u0[ok], gray.shape)
         self.inlier_ratio = float(inliers.mean())
         if transform is not None and self.camera_height is not None:
             scale = road_scale(r0[ok], r1[ok], transform, self.camera_height,

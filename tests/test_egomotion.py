@@ -223,3 +223,22 @@ def test_a_tracker_given_the_camera_height_steps_in_metres(frames):
     np.testing.assert_allclose(est_steps, true_steps, rtol=0.06)  # 4 % at 480x360, fx 150
     with pytest.raises(ValueError, match="camera_height"):
         PoseTracker(CAM, camera_height=-1.0)
+
+
+def test_a_close_moving_object_with_more_corners_does_not_win_the_pose():
+    from fisheyemotion.egomotion import dominant_background_pose
+
+    rng = np.random.default_rng(11)
+    pose0 = camera_pose(rng, height=1.5)
+    pose1 = moved(pose0, [0.3, 0.0, 0.0], yaw_deg=2.0)
+    background = pose0[:3, 3] + rng.uniform([3, -10, -1.4], [20, 10, 5], size=(120, 3))
+    # An arm: 300 corners in a compact patch 0.5 m ahead, moving on its own.
+    arm = pose0[:3, 3] + np.array([0.6, 0.0, -0.2]) + rng.uniform(-0.08, 0.08, size=(300, 3))
+    arm_pose1 = moved(pose1, [0.0, 0.05, 0.04], yaw_deg=-4.0)
+    rays0 = np.r_[rays_of(background, pose0), rays_of(arm, pose0)]
+    rays1 = np.r_[rays_of(background, pose1), rays_of(arm, arm_pose1)]
+    pixels0, _ = CAM.project(rays0)
+    transform, inliers = dominant_background_pose(rays0, rays1, pixels0, (CAM.height, CAM.width))
+    truth = np.linalg.inv(pose1) @ pose0
+    assert _angle(truth[:3, :3].T @ transform[:3, :3]) < 0.01
+    assert inliers[:120].mean() > 0.9 and inliers[120:].mean() < 0.1
