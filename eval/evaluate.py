@@ -130,6 +130,9 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
     gap = params.frame_gap
     renderer = _exact_flow_renderer(seq) if exact_flow else None
     grays = [to_gray(seq.frame(i), "frame") for i in range(min(gap, len(seq)))]
+    for i, gray in enumerate(grays):  # a stream's road estimate sees every frame, as apply() does
+        for detector in (main, *variants.values()):
+            detector._observe_ground(gray, moved @ given[i])
     for k in range(gap, len(seq)):
         grays.append(to_gray(seq.frame(k), "frame"))
         g0, g1 = grays.pop(0), grays[-1]

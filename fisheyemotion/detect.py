@@ -26,7 +26,7 @@ from .constraints import ConstraintResult, constraints
 from .egomotion import PoseTracker
 from .flow import FlowEstimator, grid_average, grid_centres, grid_gather, grid_transfer, grid_upsample
 from .frames import to_gray
-from .ground import GroundEstimator, level_up
+from .ground import GroundEstimator, provisional_road
 from .ground_contact import standing_regions
 from .grow import grow_regions
 from .params import Params
@@ -41,8 +41,6 @@ CONSTRAINT_NAMES = ("epipolar", "depth", "height", "antiparallel")
 #: Share of the image flagged moving above which a given road (or the poses) is suspect.
 FLOODED = 0.5
 
-#: Metres: the provisional road's distance below the camera while ``road='auto'`` searches.
-PROVISIONAL_HEIGHT = 1.0
 
 #: Relative range difference within which a cell agrees with the static-scene model.
 SCENE_AGREEMENT = 0.05
@@ -497,15 +495,12 @@ class MotionDetector:
 
     def _prior_road(self, pose: NDArray, pose_b: NDArray) -> Road:
         """The road the ego prior warps by: the known one or, while ``road='auto'`` has not
-        found one yet, a provisional plane: ``camera_height`` (or ``PROVISIONAL_HEIGHT``) below
-        the camera, its normal the camera's image-down axis with the direction of travel
-        projected out (a vehicle moves parallel to its road: this removes the camera's pitch).
-        The constraints never see it."""
+        found one yet, a provisional plane (:func:`fisheyemotion.ground.provisional_road`:
+        ``camera_height`` below the camera, its normal the camera's image-down axis with the
+        direction of travel projected out). The constraints never see it."""
         if self.road.known or self.ground is None:
             return self.road
-        up = level_up(pose, pose_b)
-        height = self.ground.camera_height or PROVISIONAL_HEIGHT
-        return Road(normal=tuple(up), offset=float(up @ pose[:3, 3]) - height)
+        return provisional_road(pose, pose_b, self.ground.camera_height)
 
     def _with_significance(self, res: ConstraintResult, sigma, likelihood) -> NDArray:
         """The likelihood raised where the height or depth deviation is significant: at

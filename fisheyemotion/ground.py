@@ -27,9 +27,13 @@ import warnings
 import numpy as np
 from numpy.typing import NDArray
 
+from .prior import static_scene_targets
 from .road import Road
 from .static_scene import TRIANGULATION_PARALLAX, triangulate_range, world_points
 from .tracks import track_corners
+
+#: Metres to points whose ray does not meet the road, for the corners' predicted positions.
+PREDICTION_DISTANCE = 1000.0
 
 __all__ = ["GroundEstimator", "PlaneModel", "check_road"]
 
@@ -61,6 +65,18 @@ class PlaneModel:
     def residuals(self, points: NDArray[np.float64], ranges: NDArray[np.float64]
                   ) -> NDArray[np.float64]:
         return np.abs(points @ self.normal - self.offset) / ranges
+
+
+#: Metres below the camera of the provisional road while none is known (and no height given).
+PROVISIONAL_HEIGHT = 1.0
+
+
+def provisional_road(pose: NDArray, pose_next: NDArray, height: float | None) -> Road:
+    """A road guessed before one is found: ``height`` (or ``PROVISIONAL_HEIGHT``) below the
+    camera, its normal :func:`level_up`. For predictions only (the prior's warp, where corners
+    are looked for), never for the constraints."""
+    up = level_up(pose, pose_next)
+    return Road(normal=tuple(up), offset=float(up @ pose[:3, 3]) - (height or PROVISIONAL_HEIGHT))
 
 
 def level_up(pose: NDArray, pose_next: NDArray) -> NDArray[np.float64]:
@@ -140,7 +156,16 @@ class GroundEstimator:
         lower[h // 2:] = True
         if mask is not None:
             lower &= np.asarray(mask, dtype=bool)
-        u0, u1 = track_corners(gray0, gray1, mask=lower)
+        # Corners start where the road (or a provisional one) would take them: the tracker's
+        # pyramid does not reach the road's displacements near a fast vehicle (60-100 px between
+        # consecutive frames at the bottom of a fisheye image on a highway).
+        road = self.road or provisional_road(pose0, pose1, self.camera_height)
+
+        def predict(pixels: NDArray[np.float64]) -> NDArray[np.float64]:
+            rays, _ = camera.unproject(pixels)
+            return static_scene_targets(camera, rays, pose0, pose1, road, PREDICTION_DISTANCE)[0]
+
+        u0, u1 = track_corners(gray0, gray1, mask=lower, predict=predict)
         if len(u0) < 10:
             return None
         r0, v0 = camera.unproject(u0)

@@ -4,6 +4,8 @@ estimate and the ego-motion estimate."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
@@ -12,13 +14,19 @@ __all__ = ["track_corners"]
 
 _LK = {"winSize": (21, 21), "maxLevel": 6,
        "criteria": (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 40, 0.01)}
+_LK_GUESSED = {**_LK, "maxLevel": 1}
 
 
 def track_corners(gray0: NDArray[np.uint8], gray1: NDArray[np.uint8], *,
                   mask: NDArray | None = None, corners: int = 600,
-                  min_distance: int = 7, fb_tolerance: float = 0.5
+                  min_distance: int = 7, fb_tolerance: float = 0.5,
+                  predict: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None
                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Corners of ``gray0`` (where ``mask`` is non-zero) and where they are in ``gray1``.
+
+    ``predict`` maps corner pixels (N, 2) to where they are expected in ``gray1`` (NaN: no
+    guess): the tracker starts there, so that large displacements the pyramid cannot reach (the
+    road near a fast vehicle) are still tracked.
 
     Returns
     -------
@@ -31,8 +39,21 @@ def track_corners(gray0: NDArray[np.uint8], gray1: NDArray[np.uint8], *,
                                     minDistance=min_distance, mask=m)
     if found is None or len(found) < 8:
         return np.empty((0, 2)), np.empty((0, 2))
-    fwd, ok1, _ = cv2.calcOpticalFlowPyrLK(gray0, gray1, found, None, **_LK)
-    back, ok2, _ = cv2.calcOpticalFlowPyrLK(gray1, gray0, fwd, None, **_LK)
+    if predict is None:
+        fwd, ok1, _ = cv2.calcOpticalFlowPyrLK(gray0, gray1, found, None, **_LK)
+        back, ok2, _ = cv2.calcOpticalFlowPyrLK(gray1, gray0, fwd, None, **_LK)
+    else:
+        guess = np.asarray(predict(found[:, 0].astype(np.float64)), dtype=np.float64)
+        guess = np.where(np.isfinite(guess), guess, found[:, 0])
+        guess = np.ascontiguousarray(guess.reshape(-1, 1, 2), dtype=np.float32)
+        # From a guess only fine levels: a coarse level would lead a patch that the perspective
+        # deforms (the road near the camera) away from it.
+        fwd, ok1, _ = cv2.calcOpticalFlowPyrLK(gray0, gray1, found, guess,
+                                               flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **_LK_GUESSED)
+        # Back with the predicted displacement reversed (not from the corners themselves).
+        back_guess = np.ascontiguousarray(fwd - (guess - found), dtype=np.float32)
+        back, ok2, _ = cv2.calcOpticalFlowPyrLK(gray1, gray0, fwd, back_guess,
+                                                flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **_LK_GUESSED)
     good = (ok1[:, 0] == 1) & (ok2[:, 0] == 1) & (
         np.linalg.norm(back - found, axis=-1)[:, 0] < fb_tolerance)
     return found[good, 0].astype(np.float64), fwd[good, 0].astype(np.float64)
