@@ -79,23 +79,36 @@ def height_significance(name: str = "street_kb", preceding_id: int = 2) -> None:
               f"of {total} cells")
 
 
-def road_estimates(names=("crossing", "highway", "preceding", "curve", "parking_lot",
-                          "approaching", "street_kb", "street_heldout_ds")) -> None:
-    """Frames until the road is found, and the first fit's errors, in the first camera's frame."""
+def road_estimates(names=("preceding", "street_kb", "highway", "crossing", "street_heldout_ds",
+                          "overtaking"), frames: int = 12) -> None:
+    """Frame at which the road is found, and its tilt and height errors over the first
+    ``frames`` frames, with the poses in the first camera's frame (no height given) and in the
+    raised, turned frame with the camera height given (``eval --world``)."""
+    from fisheyemotion.eval.evaluate import world_transform
+    from fisheyemotion.frames import to_gray
+    from fisheyemotion.ground import GroundEstimator
+
+    tilts, heights, found = [], [], []
     for name in names:
         seq = Sequence(SEQUENCES / name)
-        new_from_scene = np.linalg.inv(seq.poses[0])
-        truth = fm.Road().transformed(new_from_scene)
-        det = fm.MotionDetector(seq.camera, "auto", roi=seq.roi())
-        for k in range(len(seq)):
-            det.apply(seq.frame(k), new_from_scene @ seq.poses[k])
-            if det.road.known:
-                tilt = np.degrees(np.arccos(np.clip(det.road.up @ truth.up, -1, 1)))
-                print(f"{name}: road found after {k} frames, {tilt:.2f} deg and "
-                      f"{abs(det.road.offset - truth.offset) * 100:.1f} cm off")
-                break
-        else:
-            print(f"{name}: no road found in {len(seq)} frames")
+        for world, height in (("first_camera", None), ("raised", float(seq.poses[0][2, 3]))):
+            moved, truth = world_transform(world, seq.poses[0])
+            ground = GroundEstimator(camera_height=height)
+            first = None
+            for k in range(min(len(seq), frames)):
+                pose = moved @ seq.poses[k]
+                ground.observe(seq.camera, to_gray(seq.frame(k), "frame"), pose,
+                               mask=seq.camera.valid_pixel_mask())
+                if ground.road is None:
+                    continue
+                first = k if first is None else first
+                tilts.append(np.degrees(np.arccos(np.clip(ground.road.up @ truth.up, -1, 1))))
+                heights.append(abs(ground.road.height(pose[:3, 3]) - truth.height(pose[:3, 3])))
+            found.append(first)
+    print(f"road found at frame {sorted(set(found))}; over the first {frames} frames: tilt "
+          f"median {np.median(tilts):.2f} deg, 90th percentile {np.percentile(tilts, 90):.2f} "
+          f"deg; height error median {100 * np.median(heights):.1f} cm, max "
+          f"{100 * np.max(heights):.1f} cm")
 
 
 if __name__ == "__main__":

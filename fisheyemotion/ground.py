@@ -110,7 +110,7 @@ class GroundEstimator:
     """
 
     def __init__(self, *, camera_height: float | None = None, min_points: int = 100,
-                 min_inlier_share: float = 0.2, tolerance: float = 0.04,
+                 min_inlier_share: float = 0.2, tolerance: float = 0.02,
                  min_height: float = 0.2, max_height: float = 5.0, seed: int = 0) -> None:
         if camera_height is not None and (not np.isfinite(camera_height) or camera_height <= 0):
             raise ValueError(f"camera_height: expected a positive number of metres, got "
