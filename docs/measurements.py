@@ -85,6 +85,7 @@ def road_estimates(names=("preceding", "street_kb", "highway", "crossing", "stre
     ``frames`` frames, with the poses in the first camera's frame (no height given) and in the
     raised, turned frame with the camera height given (``eval --world``)."""
     from fisheyemotion.eval.evaluate import world_transform
+
     from fisheyemotion.frames import to_gray
     from fisheyemotion.ground import GroundEstimator
 
