@@ -124,6 +124,33 @@ def sequences(tmp_path_factory):
                                  supersample=1) for sc in (crossing, world)]
 
 
+def assert_well_formed(page: str) -> None:
+    """Every element closed in order (void elements excepted), one html/head/body."""
+    from html.parser import HTMLParser
+
+    void = {"meta", "img", "br", "hr", "link", "input"}
+
+    class Checker(HTMLParser):
+        def __init__(self):
+            super().__init__()
+            self.stack, self.seen = [], []
+
+        def handle_starttag(self, tag, attrs):
+            self.seen.append(tag)
+            if tag not in void:
+                self.stack.append(tag)
+
+        def handle_endtag(self, tag):
+            assert self.stack and self.stack[-1] == tag, f"</{tag}> closes <{self.stack[-1:]}>"
+            self.stack.pop()
+
+    checker = Checker()
+    checker.feed(page)
+    checker.close()
+    assert page.startswith("<!doctype html>") and checker.stack == []
+    assert [checker.seen.count(t) for t in ("html", "head", "body", "title")] == [1, 1, 1, 1]
+
+
 def test_end_to_end_report(sequences, tmp_path):
     results, report = run_eval(sequences, FAST, ["dis", "farneback"], tmp_path / "report",
                                workers=1, scheduler=None, progress=False)
@@ -133,6 +160,7 @@ def test_end_to_end_report(sequences, tmp_path):
         assert (tmp_path / "report" / name).exists(), name
     html = report.read_text()
     assert "data:image/png;base64," in html and "<img src=\"" not in html
+    assert_well_formed(html)
     # The HTML says everything report.md says: every heading, every table, every figure.
     md = (tmp_path / "report" / "report.md").read_text()
     import re
