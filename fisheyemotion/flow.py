@@ -108,7 +108,7 @@ def grid_transfer(cell_flow: NDArray, order: NDArray, grid: int, *,
     ndarray of intp, shape (rows, cols)
         Flat index of the source cell, -1 where none.
     """
-    from ._transfer_kernel import transfer  # numba on first use: a light import
+    from ._grid_kernels import transfer  # numba on first use: a light import
 
     rows, cols = order.shape
     centres = grid_centres(cols * grid, rows * grid, grid)

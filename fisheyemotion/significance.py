@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .calib.base import CameraModel
-from .flow import grid_average, grid_upsample
+from .flow import grid_average
 
 __all__ = ["cell_sigma", "pixel_angle"]
 
@@ -69,9 +69,9 @@ def cell_sigma(flow: NDArray[np.float32], grid: int, angle: NDArray[np.float64],
     ndarray, shape (rows, cols)
         Radians.
     """
+    from ._grid_kernels import cell_variance  # numba on first use: a light import
+
     mean = grid_average(flow, grid) if mean is None else mean
-    h, w = flow.shape[:2]
     # Deviations from the cell mean (E[f^2] - E[f]^2 would cancel at 100-px flows).
-    dev = flow - grid_upsample(mean, grid, w, h)
-    var = grid_average(dev * dev, grid).sum(axis=-1)
+    var = cell_variance(np.ascontiguousarray(flow), int(grid), np.ascontiguousarray(mean))
     return np.sqrt(floor * floor + var) * angle
