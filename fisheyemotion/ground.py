@@ -32,6 +32,8 @@ from .road import Road
 from .static_scene import TRIANGULATION_PARALLAX, triangulate_range, world_points
 from .tracks import track_corners
 
+#: Rounds of re-selecting the inliers of the least-squares plane and refitting.
+REFINE_ROUNDS = 2
 #: Metres to points whose ray does not meet the road, for the corners' predicted positions.
 PREDICTION_DISTANCE = 1000.0
 
@@ -205,6 +207,13 @@ class GroundEstimator:
         if model is None or inliers is None or inliers.mean() < self.min_inlier_share:
             return None
         refined = PlaneModel.from_estimate(cand[inliers])
+        for _ in range(REFINE_ROUNDS):  # the inliers of the least-squares plane, not RANSAC's
+            if not refined:
+                return None
+            inliers = refined.residuals(cand, rng) < self.tolerance
+            if inliers.sum() < 3:
+                return None
+            refined = PlaneModel.from_estimate(cand[inliers])
         if not refined:
             return None
         n, d = refined.normal, refined.offset
