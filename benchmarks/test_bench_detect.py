@@ -196,3 +196,27 @@ def test_farneback_pipeline_interleaved_with_flow_alone(benchmark, frames, pipel
     flow_ms, detect_ms = (1e3 * float(np.median(times[k][2:])) for k in ("flow", "detect"))
     benchmark.extra_info.update(flow_ms=round(flow_ms, 2), detect_ms=round(detect_ms, 2),
                                 ratio=round(detect_ms / flow_ms, 4))
+
+
+@pytest.mark.benchmark(group="poses-640x480")
+@pytest.mark.parametrize("what", ["pose_from_images", "pose_from_images_and_road_scale",
+                                  "peer_farneback"])
+def test_pose_estimation(benchmark, frames, what):
+    """One consecutive frame pair's pose from the images (``PoseTracker.step``: corners,
+    Lucas-Kanade, PoseLib twice; with the camera height also the road scale), beside a Farneback
+    flow of the same pair."""
+    from fisheyemotion.egomotion import PoseTracker
+
+    fr, roi = frames
+    g0, g1 = _gray(fr[0]), _gray(fr[1])
+    if what == "peer_farneback":
+        benchmark(fm.MotionDetector(CAM, params=fm.Params.paper())._flow, g0, g1)
+        return
+    tracker = PoseTracker(CAM, mask=roi > 0, camera_height=0.9 if "road" in what else None)
+
+    def pair():
+        tracker._last = None
+        tracker.step(g0)
+        return tracker.step(g1)
+
+    assert benchmark(pair) is not None

@@ -12,8 +12,12 @@ from numpy.typing import NDArray
 
 __all__ = ["track_corners"]
 
-_LK = {"winSize": (21, 21), "maxLevel": 6,
-       "criteria": (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 40, 0.01)}
+#: Small windows: a fisheye's perspective deforms a patch between frames, and a 21-px window
+#: straddling that deformation biased the tracks (measured on the demo scenes: the relative
+#: rotation's error 0.04-0.14 deg with 21 px, 0.02-0.04 deg with 7 px; the road's tilt 0.07 deg
+#: median, 0.40 deg 90th percentile, with 21 px; 0.016 and 0.038 deg with 7 px).
+_LK = {"winSize": (7, 7), "maxLevel": 4,
+       "criteria": (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.01)}
 _LK_GUESSED = {**_LK, "maxLevel": 1}
 
 
