@@ -441,7 +441,9 @@ def write_report(results: list[SequenceResult], out: str | Path, params: Params,
                "No ground-truth masks: the wearer's arm is the office clip's only moving object, "
                "so the share of pixels flagged outside the largest region bounds the static "
                "background flagged. Indoors and head-mounted: no road (epipolar and "
-               "positive-depth constraints only), consecutive frames.", "",
+               "positive-depth constraints only), consecutive frames. Each clip runs with its own "
+               "(VIO) poses and with none: the \"no poses\" columns, poses estimated from the "
+               "images and their rotations compared with the VIO's.", "",
                real[0].to_markdown(index=False, floatfmt=".2f")]
         if "real.png" in images:
             md += ["", "![Figure 5. Detections on the real clips (green), with their own "
