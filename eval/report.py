@@ -160,7 +160,7 @@ def fig_pr(results: list[SequenceResult], params: Params) -> tuple[Figure, pd.Da
     ax_roc.set_xlabel("false-positive rate (static pixels)")
     ax_roc.set_ylabel("true-positive rate")
     ax_roc.set_title("ROC", fontsize=10)
-    ax_pr.legend(fontsize=8)
+    ax_roc.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), title="flow")
     return fig, (pd.concat(curves, ignore_index=True) if curves else pd.DataFrame())
 
 
@@ -432,7 +432,8 @@ def write_report(results: list[SequenceResult], out: str | Path, params: Params,
                "![Figure 4. One frame per category, streamed as evaluated (the detector saw the "
                "frames before it). Row I: the grid-averaged flow, from where each cell was to "
                "where it is now; II-V: the four constraints' deviations; VI: the likelihood "
-               "(one colour scale, saturated at the paper's 0.02); VII: the segmentation against "
+               "(one colour scale, saturated at the paper's 0.02); then the ground truth's moving "
+               "objects; VII: the segmentation against "
                "ground truth: green true, red false, blue missed. When the camera stands still "
                "(static column) only |p'xp| is scored, so rows II-V are empty.](fig6.png)"]
     if real is not None:

@@ -118,6 +118,7 @@ class Fig6Column(NamedTuple):
 
 ROW_TITLES = ("I flow", "II epipolar", "III positive\ndepth", "IV positive\nheight",
               "V anti-\nparallel", "VI likelihood", "VII detected")
+TRUTH_TITLE = "ground\ntruth"
 STILL_NOTE = "camera still:\nterm not used;\nVI is |p\u2032\u00d7p|"
 
 
@@ -128,8 +129,9 @@ def fig6(columns: Sequence[Fig6Column | tuple], *, saturation: float = 0.02,
     Rows: I the grid-averaged flow (about ``arrows`` arrows across, from where each cell was in
     the previous frame to where it is now), II-V the four deviations and VI the likelihood (one
     colour scale, saturated at ``saturation`` like the paper's), VII the segmentation; with
-    ground truth, VII colours true detections green, false ones red and missed object pixels
-    blue. Columns whose camera stood still say that rows II-V are not used there.
+    ground truth, a row of the moving objects before VII, and VII colours true detections green,
+    false ones red and missed object pixels blue. Columns whose camera stood still say that rows
+    II-V are not used there.
 
     Parameters
     ----------
@@ -146,14 +148,20 @@ def fig6(columns: Sequence[Fig6Column | tuple], *, saturation: float = 0.02,
 
     cols = [Fig6Column(*c) for c in columns]
     n = len(cols)
-    fig = Figure(figsize=(2.9 * n + 1.6, 2.3 * 7), layout="constrained")
-    axes = fig.subplots(7, n, squeeze=False)
+    truth_row = any(col.truth is not None for col in cols)
+    titles = ROW_TITLES[:6] + ((TRUTH_TITLE,) if truth_row else ()) + ROW_TITLES[6:]
+    fig = Figure(figsize=(2.9 * n + 1.6, 2.3 * len(titles)), layout="constrained")
+    axes = fig.subplots(len(titles), n, squeeze=False)
     for c, col in enumerate(cols):
         det = col.detection
         step = max(1, det.grid.centres.shape[1] // arrows)
         rows = [flow_arrows(col.frame, det, step=step)]
         rows += [heatmap(det.maps[name], vmax=saturation) for name in CONSTRAINT_NAMES]
         rows.append(likelihood_map(det, saturation=saturation))
+        if truth_row:
+            truth = np.zeros(det.mask.shape, bool) if col.truth is None else col.truth
+            rows.append(overlay_mask(col.frame, truth.astype(np.uint8) * 255,
+                                     color=(255, 120, 0)))
         rows.append(overlay_mask(col.frame, det.mask) if col.truth is None
                     else truth_overlay(col.frame, det.mask, col.truth))
         for r, img in enumerate(rows):
@@ -165,13 +173,14 @@ def fig6(columns: Sequence[Fig6Column | tuple], *, saturation: float = 0.02,
                 ax.text(0.5, 0.5, STILL_NOTE, transform=ax.transAxes, ha="center", va="center",
                         color="white", fontsize=11)
             if c == 0:
-                ax.set_ylabel(ROW_TITLES[r], fontsize=14, rotation=0, ha="right", va="center")
+                ax.set_ylabel(titles[r], fontsize=14, rotation=0, ha="right", va="center")
             if r == 0:
                 ax.set_title(col.title, fontsize=13)
     colorbar = fig.colorbar(ScalarMappable(Normalize(0, saturation), colormaps["inferno"]),
                             ax=axes[1:6, :].ravel().tolist(), shrink=0.6, aspect=40, pad=0.01)
     colorbar.set_label(f"deviation / likelihood (rad), saturated at {saturation:g}", fontsize=13)
     if any(col.truth is not None for col in cols):
-        fig.supxlabel("VII: green = detected on a moving object, red = false detection on static "
-                      "scene, blue = missed object pixels", fontsize=13)
+        fig.supxlabel("ground truth: moving objects in blue; VII: green = detected on a moving "
+                      "object, red = false detection on static scene, blue = missed object pixels",
+                      fontsize=13)
     return fig

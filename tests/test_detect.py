@@ -181,7 +181,7 @@ def test_drawing_returns_bgr_images_and_the_fig6_layout(pair):
         assert (judged[sel].argmax(axis=1) == channel).mean() > 0.95
     assert (judged[~found & ~truth] == 0).all()
     fig = draw.fig6([draw.Fig6Column(f0.image, det, "crossing", truth)] * 2)
-    assert len(fig.axes) == 2 * 7 + 1 and "green" in fig._supxlabel.get_text()
+    assert len(fig.axes) == 2 * 8 + 1 and "green" in fig._supxlabel.get_text()  # + truth row
 
 
 def test_detect_cli_on_a_sequence_folder(tmp_path, pair):
