@@ -43,6 +43,9 @@ FLOODED = 0.5
 
 
 #: Relative range difference within which a cell agrees with the static-scene model.
+#: ``pose_refinement='auto'`` also refines where the given direction of travel is off the images'
+#: by this many times ``refine_tolerance`` (the direction is measured less precisely).
+DIRECTION_TOLERANCE = 5.0
 SCENE_AGREEMENT = 0.05
 #: ... or within this many of the cell's range errors (from its flow's error), if larger.
 AGREEMENT_SIGMAS = 2.0
@@ -257,25 +260,37 @@ class MotionDetector:
         return result
 
     def _refined(self, gray: NDArray[np.uint8], pose: NDArray) -> NDArray[np.float64]:
-        """The given pose with its rotation relative to the previous frame's (refined) pose
-        replaced by the images' where ``params.pose_refinement`` says so."""
+        """The given pose with its motion relative to the previous frame's (refined) pose
+        replaced by the images' where ``params.pose_refinement`` says so: the rotation and the
+        direction of travel from the images, the length of the step from the given poses (the
+        images have no scale)."""
         if self._refiner is None:
             self._refiner = PoseTracker(self.camera, mask=self._pixel_valid)
         given_before, refined_before = self._refine_state or (None, None)
         estimate = self._refiner.step(gray, self._last_mask)
         out = pose
         if estimate is not None and given_before is not None:
-            # cam_now_from_cam_before of the given poses, and of the images.
-            given = (np.linalg.inv(pose) @ given_before)[:3, :3]
-            angle = np.degrees(np.arccos(np.clip((np.trace(given.T @ estimate[:3, :3]) - 1) / 2,
-                                                 -1, 1)))
-            if self.params.pose_refinement == "on" or angle > self.params.refine_tolerance:
+            # cam_now_from_cam_before of the given poses, and of the images (unit translation).
+            given = np.linalg.inv(pose) @ given_before
+            angle = np.degrees(np.arccos(np.clip((np.trace(given[:3, :3].T @ estimate[:3, :3])
+                                                  - 1) / 2, -1, 1)))
+            # The camera's displacement in the previous camera's frame, given and estimated.
+            step_given = -given[:3, :3].T @ given[:3, 3]
+            step_images = -estimate[:3, :3].T @ estimate[:3, 3]
+            length = float(np.linalg.norm(step_given))
+            off_course = (np.degrees(np.arccos(np.clip(step_given @ step_images / length, -1, 1)))
+                          if length > 1e-9 else 0.0)
+            if self.params.pose_refinement == "on" or angle > self.params.refine_tolerance \
+                    or off_course > DIRECTION_TOLERANCE * self.params.refine_tolerance:
                 out = pose.copy()
                 out[:3, :3] = refined_before[:3, :3] @ estimate[:3, :3].T
+                out[:3, 3] = refined_before[:3, 3] + refined_before[:3, :3] @ (step_images * length)
+        elif refined_before is not None and self._refiner.still:
+            # The images say the camera stood still: it did, whatever the given poses say.
+            out = refined_before.copy()
         elif refined_before is not None:
             # No estimate: carry the correction made so far.
-            out = pose.copy()
-            out[:3, :3] = refined_before[:3, :3] @ given_before[:3, :3].T @ pose[:3, :3]
+            out = refined_before @ np.linalg.inv(given_before) @ pose
         self._refine_state = (pose, out)
         return out
 

@@ -41,6 +41,8 @@ EPIPOLAR_PIXELS = 1.5
 #: Degrees of parallax a road correspondence needs (its range error is about the flow error
 #: over this).
 MIN_PARALLAX = 1.0
+#: Median corner displacement (pixels) at or below which the camera is taken to stand still.
+STILL_PIXELS = 0.3
 #: Grid (per side) over which the spread of a pose hypothesis' inliers is counted.
 SPREAD_CELLS = 8
 #: Fewest outliers of the first hypothesis to fit a second one to.
@@ -219,6 +221,9 @@ class PoseTracker:
             self._pixel_angle = float(pixel_angle(camera, centre)[0])
         self.pose = np.eye(4)
         self.inlier_ratio = math.nan
+        #: Whether the last :meth:`step` found the camera standing still (its corners moved
+        #: ``STILL_PIXELS`` or less, median).
+        self.still = False
 
     @property
     def metric(self) -> bool:
@@ -240,7 +245,8 @@ class PoseTracker:
         r1, ok1 = self.camera.unproject(u1)
         ok = ok0 & ok1
         moved = np.linalg.norm(u1 - u0, axis=-1)
-        if ok.sum() < 8 or np.median(moved[ok]) <= 0.3:  # a still camera has no baseline
+        self.still = ok.sum() >= 8 and np.median(moved[ok]) <= STILL_PIXELS
+        if ok.sum() < 8 or self.still:  # a still camera has no baseline
             return None
         transform, inliers = dominant_background_pose(r0[ok], r1[ok], u0[ok], gray.shape)
         self.inlier_ratio = float(inliers.mean())

@@ -84,11 +84,12 @@ class Params:
     flow_sigma : float
         Pixels: the flow's error on a well-measured cell (the floor of the error model).
     pose_refinement : {'off', 'on', 'auto'}
-        Streams with given poses: the rotation between consecutive frames is also estimated from
-        the images (:mod:`fisheyemotion.egomotion`); ``on`` always uses it, ``auto`` where it
-        disagrees with the given poses by more than ``refine_tolerance`` degrees (odometry or a
+        Streams with given poses: the rotation and the direction of travel between consecutive
+        frames are also estimated from the images (:mod:`fisheyemotion.egomotion`); ``on``
+        always uses them, ``auto`` where the rotation disagrees with the given poses' by more
+        than ``refine_tolerance`` degrees or the direction by five times that (odometry or a
         loosely synchronised IMU: every tenth of a degree of rotation error is a flow error
-        everywhere). Positions stay as given.
+        everywhere). The length of each step stays as given.
     refine_tolerance : float
         Degrees, for ``pose_refinement='auto'``.
     grow : int

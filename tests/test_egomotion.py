@@ -153,6 +153,38 @@ def test_pose_refinement_repairs_noisy_rotations(frames):
     assert flagged["refined"] < flagged["true"] + 0.01  # ... which the refinement removes
 
 
+def test_pose_refinement_takes_the_direction_of_travel_from_the_images_and_the_length_given(frames):
+
+    roi = synth.Renderer(CAM, SCENE, supersample=1).roi()
+    rng = np.random.default_rng(6)
+    noisy = []
+    for f in frames:  # the positions 10 % of a step off, in a random direction
+        p = f.pose.copy()
+        p[:3, 3] += 0.10 * 0.46 * _unit(rng)
+        noisy.append(p)
+    det = fm.MotionDetector(CAM, fm.Road(), fm.Params(frame_gap=1, pose_refinement="on"),
+                            roi=roi)
+    refined = []
+    for f, p in zip(frames, noisy, strict=True):
+        det.apply(f.image, p)
+        refined.append(det.last_pose)
+    for k in range(2, len(frames)):
+        true_step = frames[k].pose[:3, 3] - frames[k - 1].pose[:3, 3]
+        got_step = refined[k][:3, 3] - refined[k - 1][:3, 3]
+        given_step = noisy[k][:3, 3] - noisy[k - 1][:3, 3]
+        # Direction from the images (the true one within 1 deg, rotated into the refined frame
+        # whose orientation is the first noisy pose's), length as given.
+        assert np.linalg.norm(got_step) == pytest.approx(np.linalg.norm(given_step), rel=1e-9)
+        r = refined[k - 1][:3, :3] @ frames[k - 1].pose[:3, :3].T
+        cos = (r @ true_step) @ got_step / (np.linalg.norm(true_step) * np.linalg.norm(got_step))
+        assert np.degrees(np.arccos(min(1.0, cos))) < 1.0  # 3-7 deg unrefined
+
+
+def _unit(rng):
+    v = rng.normal(size=3)
+    return v / np.linalg.norm(v)
+
+
 @pytest.fixture(scope="module")
 def ego_sequence(tmp_path_factory):
     return synth.write_sequence(tmp_path_factory.mktemp("ego") / "ego", CAM, SCENE,
