@@ -29,6 +29,48 @@ def _peer(group: str) -> str | None:
     return PEERS.get(group)
 
 
+#: The targets the speed issue set, each beside its peer from the same run:
+#: (target, benchmark, peer benchmark or None, the measured quantity, its limit, at most?).
+TARGETS = (
+    ("KB unprojection at most bare cv2.fisheye.undistortPoints' time",
+     "test_fisheyemotion_unproject[kannala_brandt]", "test_cv2_fisheye_undistortPoints_bare",
+     "ratio", 1.0, True),
+    ("defaults' non-flow work <= 3 ms, after a real flow call (DIS ultrafast, 1 thread)",
+     "test_detect_stage[default_after_flow-dis-ultrafast-1t]",
+     "test_detect_stage[flow_alone-dis-ultrafast-1t]", "ms", 3.0, True),
+    ("defaults' non-flow work <= 5 ms (the cluttered-streets issue's budget)",
+     "test_detect_stage[default_after_flow-farneback-1t]",
+     "test_detect_stage[flow_alone-farneback-1t]", "ms", 5.0, True),
+    ("DIS ultrafast defaults >= 150 fps on one core (stream)",
+     "test_stream_640x480[dis-ultrafast-1t]", None, "fps", 150.0, False),
+    ("pose from the images <= 5 ms per frame pair", "test_pose_estimation[pose_from_images]",
+     "test_pose_estimation[peer_farneback]", "ms", 5.0, True),
+    ("evaluation on Dask at least as fast as the local pool", "test_eval_dask_local_cluster",
+     "test_eval_process_pool", "ratio", 1.0, True),
+)
+
+
+def targets(df: pd.DataFrame) -> pd.DataFrame:
+    """Each of :data:`TARGETS` with its measurement, its peer's and whether it is met."""
+    by_name = df.set_index("name")
+    rows = []
+    for text, name, peer, unit, limit, at_most in TARGETS:
+        if name not in by_name.index:
+            continue
+        ms = float(by_name.loc[name, "median_ms"])
+        peer_ms = float(by_name.loc[peer, "median_ms"]) if peer in by_name.index else float("nan")
+        if unit == "ratio":
+            value = ms / peer_ms
+        elif unit == "fps":
+            value = json.loads(by_name.loc[name, "extra"]).get("fps", float("nan"))
+        else:
+            value = ms
+        met = value <= limit if at_most else value >= limit
+        rows.append({"target": text, "measured": f"{value:.3g} {unit}",
+                     "peer ms": f"{peer_ms:.3g}", "met": "yes" if met else "no"})
+    return pd.DataFrame(rows)
+
+
 def main(path: str) -> None:
     with open(path) as fh:
         doc = json.load(fh)
@@ -55,6 +97,10 @@ def main(path: str) -> None:
     print(f"Machine: {cpu}, {doc['machine_info'].get('cpu', {}).get('count', '?')} cores, "
           f"Python {doc['machine_info']['python_version']}, {doc['datetime']}\n")
     print(df.sort_values(["group", "name"]).to_markdown(index=False, floatfmt=".3g"))
+    goals = targets(df)
+    if len(goals):
+        print("\nTargets (cv2 threads as in each benchmark's name or extra_info):\n")
+        print(goals.to_markdown(index=False))
 
 
 if __name__ == "__main__":
