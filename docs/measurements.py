@@ -166,6 +166,34 @@ def wall_ranges(name: str = "street_kb", frame: int = 30) -> None:
           f"{100 * np.nanmedian(rel):+.0f} % of the true one (median)")
 
 
+def pose_steps(names=("crossing", "highway", "street_kb", "street_ds", "curve", "preceding",
+                      "overtaking", "approaching", "parking_lot", "street_heldout_kb",
+                      "street_heldout_ds", "static_world")) -> None:
+    """Length of each step estimated from the images and the camera height, against the true
+    one (median and range of the ratio per sequence), and the rotation error between
+    consecutive frames."""
+    from fisheyemotion.eval.pose_sources import pose_errors
+
+    from fisheyemotion.egomotion import PoseTracker
+
+    medians, lo, hi, rotations = [], [], [], []
+    for name in names:
+        seq = Sequence(SEQUENCES / name)
+        roi = seq.roi()
+        tracker = PoseTracker(seq.camera, mask=None if roi is None else roi > 0,
+                              camera_height=float(fm.Road().height(seq.poses[0, :3, 3])))
+        est = np.stack([tracker(gray) for gray in _grays(seq)])
+        ratio = (np.linalg.norm(np.diff(est[:, :3, 3], axis=0), axis=-1)
+                 / np.linalg.norm(np.diff(seq.poses[:, :3, 3], axis=0), axis=-1))
+        medians.append(np.median(ratio))
+        lo.append(ratio.min())
+        hi.append(ratio.max())
+        rotations += list(pose_errors(est, seq.poses, 1).rotation_error_deg)
+    print(f"estimated steps / true steps: medians per sequence {min(medians):.3f}-"
+          f"{max(medians):.3f}, single steps {min(lo):.2f}-{max(hi):.2f}; rotation error between "
+          f"consecutive frames median {np.median(rotations):.3f} deg")
+
+
 if __name__ == "__main__":
     if not SEQUENCES.is_dir():
         sys.exit(f"{SEQUENCES}: run 'make demo' first")
@@ -175,3 +203,4 @@ if __name__ == "__main__":
     road_estimates()
     false_regions()
     wall_ranges()
+    pose_steps()
