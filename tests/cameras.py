@@ -9,6 +9,15 @@ TUMVI_KB = dict(fx=190.97847715128717, fy=190.97330705212261, cx=254.93170605935
                 cy=256.8974428996504, k1=0.0034823894022493434, k2=0.0007150348452162257,
                 k3=-0.0020532361418706202, k4=0.00020293673591811182, width=512, height=512)
 
+
+
+def tumvi_kb(width: int, height: int, f: float) -> calib.KannalaBrandt:
+    """The TUM VI lens's distortion on a ``width x height`` sensor with focal length ``f``
+    (pixels) and the principal point at the image centre: the tests' and scenes' camera."""
+    return calib.KannalaBrandt(**{**TUMVI_KB, "fx": f, "fy": f, "cx": (width - 1) / 2,
+                                  "cy": (height - 1) / 2, "width": width, "height": height})
+
+
 MODEL_SAMPLES: dict[str, list[calib.CameraModel]] = {
     "pinhole": [calib.Pinhole(fx=300, fy=310, cx=319.5, cy=239.5, width=640, height=480)],
     "kannala_brandt": [

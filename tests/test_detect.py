@@ -12,10 +12,9 @@ import fisheyemotion as fm
 from fisheyemotion import draw, synth
 from fisheyemotion.cli import main
 
-from .cameras import TUMVI_KB
+from .cameras import tumvi_kb
 
-CAM = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 200.0, "fy": 200.0, "cx": 319.5,
-                                "cy": 239.5, "width": 640, "height": 480})
+CAM = tumvi_kb(640, 480, 200.0)
 PAIR = synth.parse_scenario({
     "name": "pair", "frames": 3, "ego": {"speed_kmh": 5},
     "camera": {"position": [2, 0, 1.0], "pitch_deg": 15},

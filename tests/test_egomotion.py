@@ -11,11 +11,10 @@ from fisheyemotion import synth
 from fisheyemotion.cli import main
 from fisheyemotion.egomotion import PoseTracker, relative_pose
 
-from .cameras import TUMVI_KB
+from .cameras import tumvi_kb
 from .scenes import camera_pose, moved, random_rotation, rays_of
 
-CAM = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 150.0, "fy": 150.0, "cx": 239.5, "cy": 179.5,
-                                "width": 480, "height": 360})
+CAM = tumvi_kb(480, 360, 150.0)
 SCENE = synth.parse_scenario({
     "name": "ego", "frames": 6, "ego": {"speed_kmh": 25, "yaw_rate_deg_s": 8},
     "camera": {"position": [2, 0, 1.0], "pitch_deg": 12},

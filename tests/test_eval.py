@@ -21,7 +21,7 @@ from fisheyemotion.eval.cli import run_eval
 import fisheyemotion as fm
 from fisheyemotion import synth
 
-from .cameras import TUMVI_KB
+from .cameras import tumvi_kb
 
 
 def _objects(rows):
@@ -105,8 +105,7 @@ def test_table2_definitions():
     assert t.loc["false positives", "coverage_rate"] == pytest.approx(0.01)
 
 
-CAM = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 100.0, "fy": 100.0, "cx": 159.5, "cy": 119.5,
-                                "width": 320, "height": 240})
+CAM = tumvi_kb(320, 240, 100.0)
 FAST = fm.Params(flow="dis", dis_preset="fast", flow_prior="ego", fb_check=True, frame_gap=2,
                  grid=4, min_area=48)
 
@@ -228,8 +227,7 @@ def test_compare_models_side_by_side(tmp_path):
     from fisheyemotion.calib.fit import fit_model
     from fisheyemotion.eval.compare import compare
 
-    kb = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 50.0, "fy": 50.0, "cx": 79.5, "cy": 59.5,
-                                   "width": 160, "height": 120})
+    kb = tumvi_kb(160, 120, 50.0)
     ds, rms = fit_model(kb, "double_sphere")
     assert rms < 1.0 and ds.width == 160
     params = fm.Params(flow="dis", dis_preset="fast", frame_gap=1, grid=4, min_area=16)

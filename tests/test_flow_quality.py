@@ -12,10 +12,9 @@ from fisheyemotion import synth
 from fisheyemotion.flow import grid_average, grid_centres, grid_upsample
 from fisheyemotion.prior import EgoFlowPrior
 
-from .cameras import TUMVI_KB
+from .cameras import tumvi_kb
 
-CAM = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 100.0, "fy": 100.0, "cx": 159.5, "cy": 119.5,
-                                "width": 320, "height": 240})
+CAM = tumvi_kb(320, 240, 100.0)
 ROAD_ONLY = synth.parse_scenario({"name": "road", "frames": 4, "ego": {"speed_kmh": 20},
                                   "camera": {"position": [2, 0, 0.9], "pitch_deg": 15}})
 

@@ -19,10 +19,9 @@ from fisheyemotion import calib, synth
 from fisheyemotion.cli import main
 from fisheyemotion.poses import Trajectory
 
-from .cameras import TUMVI_KB
+from .cameras import tumvi_kb
 
-CAM = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 100.0, "fy": 100.0, "cx": 159.5, "cy": 119.5,
-                                "width": 320, "height": 240})
+CAM = tumvi_kb(320, 240, 100.0)
 SCENE = synth.parse_scenario({
     "name": "hostile", "frames": 4, "ego": {"speed_kmh": 15},
     "camera": {"position": [2, 0, 1.0], "pitch_deg": 15},

@@ -13,7 +13,7 @@ from fisheyemotion import synth
 from fisheyemotion.ground import GroundEstimator, check_road
 from fisheyemotion.poses import PoseMatcher, Trajectory, read_poses, write_tum
 
-from .cameras import TUMVI_KB
+from .cameras import tumvi_kb
 from .scenes import random_rotation
 
 RNG = np.random.default_rng(3)
@@ -101,8 +101,7 @@ def test_body_poses_compose_with_the_extrinsic():
 
 # ---- the road in any world frame ------------------------------------------------------------
 
-CAM = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 120.0, "fy": 120.0, "cx": 199.5, "cy": 149.5,
-                                "width": 400, "height": 300})
+CAM = tumvi_kb(400, 300, 120.0)
 ROAD_SCENE = synth.parse_scenario({"name": "road", "frames": 8, "ego": {"speed_kmh": 20},
                                    "camera": {"position": [2, 0, 1.1], "pitch_deg": 12}})
 
@@ -147,9 +146,7 @@ def test_defaults_scaled_to_the_camera_behave_alike_at_any_resolution(width, hei
     """The same 190-degree lens at four sensor sizes: the scaled defaults see the crossing car
     as one region of about the same angular size, and flag little else."""
     scale = width / 640
-    cam = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 200.0 * scale, "fy": 200.0 * scale,
-                                    "cx": (width - 1) / 2, "cy": (height - 1) / 2,
-                                    "width": width, "height": height})
+    cam = tumvi_kb(width, height, 200.0 * scale)
     scene = synth.parse_scenario({
         "name": "res", "frames": 2, "ego": {"speed_kmh": 5},
         "camera": {"position": [2, 0, 1.0], "pitch_deg": 15},

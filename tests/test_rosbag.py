@@ -8,14 +8,12 @@ import pytest
 from fisheyemotion.calib.transforms import matrix_to_quat
 from rosbags.typesys import Stores, get_typestore
 
-import fisheyemotion as fm
 from fisheyemotion import synth
 from fisheyemotion.cli import main
 
-from .cameras import TUMVI_KB
+from .cameras import tumvi_kb
 
-CAM = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 120.0, "fy": 120.0, "cx": 199.5, "cy": 149.5,
-                                "width": 400, "height": 300})
+CAM = tumvi_kb(400, 300, 120.0)
 SCENE = synth.parse_scenario({
     "name": "bag", "frames": 4, "ego": {"speed_kmh": 10},
     "camera": {"position": [2, 0, 1.0], "pitch_deg": 15},

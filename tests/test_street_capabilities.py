@@ -16,11 +16,10 @@ from fisheyemotion.prior import EgoFlowPrior
 from fisheyemotion.significance import cell_sigma, pixel_angle
 from fisheyemotion.static_scene import StaticScene, triangulate_range
 
-from .cameras import TUMVI_KB
+from .cameras import tumvi_kb
 from .scenes import camera_pose, moved, rays_of
 
-CAM = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 100.0, "fy": 100.0, "cx": 159.5, "cy": 119.5,
-                                "width": 320, "height": 240})
+CAM = tumvi_kb(320, 240, 100.0)
 WALL = synth.parse_scenario({
     "name": "wall", "frames": 4, "ego": {"speed_kmh": 25},
     "camera": {"position": [2, 0, 0.9], "pitch_deg": 10},
@@ -144,8 +143,7 @@ def test_masks_are_on_the_current_frame():
         "camera": {"position": [2, 0, 1.0], "pitch_deg": 15},
         "objects": [{"id": 1, "kind": "car", "category": "crossing", "start": [8, -3],
                      "heading_deg": 90, "speed_kmh": 40}]})
-    cam = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 200.0, "fy": 200.0, "cx": 319.5,
-                                    "cy": 239.5, "width": 640, "height": 480})
+    cam = tumvi_kb(640, 480, 200.0)
     f0, f1 = synth.render_frames(cam, scenario)
     det = fm.MotionDetector(cam).detect_flow(np.nan_to_num(f1.flow), f0.pose, f1.pose)
     now, before = f1.moving > 0, f0.moving > 0

@@ -10,10 +10,9 @@ import fisheyemotion as fm
 from fisheyemotion import synth
 from fisheyemotion.sequence import Sequence
 
-from .cameras import TUMVI_KB
+from .cameras import tumvi_kb
 
-KB = fm.calib.KannalaBrandt(**{**TUMVI_KB, "fx": 100.0, "fy": 100.0, "cx": 159.5, "cy": 119.5,
-                               "width": 320, "height": 240})
+KB = tumvi_kb(320, 240, 100.0)
 DS = fm.calib.DoubleSphere(fx=85, fy=85, cx=159.5, cy=119.5, xi=-0.17, alpha=0.59, width=320,
                            height=240)
 EUCM = fm.calib.EnhancedUnified(fx=100, fy=100, cx=159.5, cy=119.5, alpha=0.63, beta=1.04,
