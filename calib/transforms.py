@@ -5,6 +5,8 @@ The one implementation used by the readers, the engine and the pose files.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -56,6 +58,20 @@ def matrix_to_quat(rotation: ArrayLike) -> NDArray[np.float64]:
     q = np.asarray(q)
     q /= np.linalg.norm(q)
     return -q if q[3] < 0 else q
+
+def rotation_angle(rotation: ArrayLike) -> float:
+    """Angle (radians, 0 to pi) of a rotation matrix, precise near 0 (``atan2`` of its sine and
+    cosine rather than ``acos`` of the trace)."""
+    r = np.asarray(rotation, dtype=np.float64)
+    sine = 0.5 * math.hypot(r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1])
+    return math.atan2(sine, 0.5 * (float(np.trace(r)) - 1.0))
+
+
+def vector_angle(a: ArrayLike, b: ArrayLike) -> float:
+    """Angle (radians, 0 to pi) between two 3-vectors of any length, precise near 0 and pi."""
+    u, v = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    return math.atan2(float(np.linalg.norm(np.cross(u, v))), float(u @ v))
+
 
 _LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
 _EYE3 = np.eye(3)

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from fisheyemotion.calib.transforms import rotation_angle, vector_angle
 from numpy.typing import NDArray
 
 from fisheyemotion.detect import MotionDetector
@@ -121,12 +122,6 @@ def poses_for(seq: Sequence, source: str, params: Params, *, noise: Perturbation
     return poses
 
 
-def _angle_deg(r: NDArray) -> float:
-    """Rotation angle of ``r`` (degrees), precise near 0 (atan2 of sine and cosine)."""
-    sine = 0.5 * math.hypot(r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1])
-    return math.degrees(math.atan2(sine, 0.5 * (np.trace(r) - 1)))
-
-
 def pose_errors(poses: NDArray, truth: NDArray, gap: int) -> pd.DataFrame:
     """Errors of the relative pose of every detected pair ``(k - gap, k)``: rotation (degrees)
     and translation direction (degrees; NaN where the true camera stood still)."""
@@ -135,10 +130,11 @@ def pose_errors(poses: NDArray, truth: NDArray, gap: int) -> pd.DataFrame:
         est = np.linalg.inv(poses[k]) @ poses[k - gap]
         tru = np.linalg.inv(truth[k]) @ truth[k - gap]
         t_est, t_tru = est[:3, 3], tru[:3, 3]
-        n_est, n_tru = np.linalg.norm(t_est), np.linalg.norm(t_tru)
-        direction = (math.degrees(math.acos(float(np.clip(t_est @ t_tru / (n_est * n_tru),
-                                                          -1, 1))))
-                     if n_est > 1e-9 and n_tru > 1e-6 else math.nan)
-        rows.append({"frame": k, "rotation_error_deg": _angle_deg(est[:3, :3].T @ tru[:3, :3]),
+        direction = (math.degrees(vector_angle(t_est, t_tru))
+                     if np.linalg.norm(t_est) > 1e-9 and np.linalg.norm(t_tru) > 1e-6
+                     else math.nan)
+        rows.append({"frame": k,
+                     "rotation_error_deg": math.degrees(rotation_angle(est[:3, :3].T
+                                                                       @ tru[:3, :3])),
                      "direction_error_deg": direction})
     return pd.DataFrame(rows)

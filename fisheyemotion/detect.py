@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .calib.base import CameraModel, pixel_grid
-from .calib.transforms import check_rigid
+from .calib.transforms import check_rigid, rotation_angle, vector_angle
 from .constraints import ConstraintResult, constraints
 from .egomotion import PoseTracker
 from .flow import FlowEstimator, grid_average, grid_centres, grid_gather, grid_transfer, grid_upsample
@@ -272,14 +272,12 @@ class MotionDetector:
         if estimate is not None and given_before is not None:
             # cam_now_from_cam_before of the given poses, and of the images (unit translation).
             given = np.linalg.inv(pose) @ given_before
-            angle = np.degrees(np.arccos(np.clip((np.trace(given[:3, :3].T @ estimate[:3, :3])
-                                                  - 1) / 2, -1, 1)))
+            angle = np.degrees(rotation_angle(given[:3, :3].T @ estimate[:3, :3]))
             # The camera's displacement in the previous camera's frame, given and estimated.
             step_given = -given[:3, :3].T @ given[:3, 3]
             step_images = -estimate[:3, :3].T @ estimate[:3, 3]
             length = float(np.linalg.norm(step_given))
-            off_course = (np.degrees(np.arccos(np.clip(step_given @ step_images / length, -1, 1)))
-                          if length > 1e-9 else 0.0)
+            off_course = np.degrees(vector_angle(step_given, step_images)) if length > 1e-9 else 0.0
             if self.params.pose_refinement == "on" or angle > self.params.refine_tolerance \
                     or off_course > DIRECTION_TOLERANCE * self.params.refine_tolerance:
                 out = pose.copy()
