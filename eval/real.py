@@ -68,6 +68,7 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
         frames = ImageFolder(clip.folder)
         row = {"clip": clip.name, "camera": clip.camera, "model": cam.name,
                "size": f"{cam.width}x{cam.height}", "frames": len(frames)}
+        last = None
         for given in (True, False):  # the clip's VIO poses, then none (estimated)
             det = MotionDetector(cam, Road.unknown(), params.for_camera(cam))
             flagged, outside, regions, used, vio = [], [], [], [], []
@@ -92,7 +93,8 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
                             "outside the largest region %": 100 * float(np.mean(outside))
                             if outside else np.nan,
                             "regions per frame": float(np.mean(regions)) if regions else np.nan})
-                shown.append(last)
+                if last is not None:
+                    shown.append(last)
             else:
                 errors = pose_errors(np.array(used), np.array(vio), 1).rotation_error_deg
                 row.update({"no poses: outside the largest region %":

@@ -41,11 +41,11 @@ CONSTRAINT_NAMES = ("epipolar", "depth", "height", "antiparallel")
 #: Share of the image flagged moving above which a given road (or the poses) is suspect.
 FLOODED = 0.5
 
-
-#: Relative range difference within which a cell agrees with the static-scene model.
 #: ``pose_refinement='auto'`` also refines where the given direction of travel is off the images'
 #: by this many times ``refine_tolerance`` (the direction is measured less precisely).
 DIRECTION_TOLERANCE = 5.0
+
+#: Relative range difference within which a cell agrees with the static-scene model.
 SCENE_AGREEMENT = 0.05
 #: ... or within this many of the cell's range errors (from its flow's error), if larger.
 AGREEMENT_SIGMAS = 2.0

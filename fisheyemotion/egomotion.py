@@ -10,10 +10,11 @@ included) works, at the cost of the rays beyond that angle.
 Scale: two views fix the translation's direction only. With the camera's height above the road
 known (``camera_height``), each step's length comes from the road: the correspondences well
 below the horizon (more than ``ROAD_ELEVATION`` down, where a vehicle camera sees its road) are
-triangulated with a unit baseline, their median depth below the camera along the level "up"
-(the camera's up with the direction of travel projected out, :func:`fisheyemotion.ground.level_up`)
-is the camera height in those units, and the step is ``camera_height`` over it (the median of the
-last ``SCALE_MEMORY`` steps' estimates, which steadies it). Otherwise the trajectory is chained with
+triangulated with a unit baseline, their most common depth below the camera along the level
+"up" (the camera's up with the direction of travel projected out,
+:func:`fisheyemotion.ground.level_up`; :func:`road_scale`) is the camera height in those units,
+and the step is ``camera_height`` over it (the median of the last ``SCALE_MEMORY`` steps'
+estimates, which steadies it). Otherwise the trajectory is chained with
 a translation of ``step`` (default 1, arbitrary units) per frame: enough for the epipolar and
 positive-depth constraints, which do not depend on scale, but the road terms need metres, so the
 detector then runs with ``Road.unknown()``.
