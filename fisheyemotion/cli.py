@@ -121,7 +121,7 @@ def run_detect(frames, camera: calib.CameraModel, matcher, out: Path, *,
     if not write_video:
         (out / "annotated").mkdir()
     detector = MotionDetector(camera, road, params, roi=roi, camera_height=camera_height)
-    video: list = []
+    video = _VideoSink(out / "annotated.mp4", fps) if write_video else None
     rows, stamps, used = [], [], []
     total = len(frames) or None
     # Frames are read ahead and outputs written behind in two threads, overlapping the detection.
@@ -152,14 +152,14 @@ def run_detect(frames, camera: calib.CameraModel, matcher, out: Path, *,
                                  **rec})
             background.submit(np.savez_compressed, out / "likelihood" / f"{name}.npz",
                               likelihood=likelihood, mask=mask)
-            if write_video:
-                background.submit(_write_video_frame, video, out / "annotated.mp4", shown, fps)
+            if video is not None:
+                background.submit(video.write, shown)
             else:
                 background.submit(cv2.imwrite, str(out / "annotated" / f"{name}.png"), shown)
             if show:
                 show = _show(shown)
-        if video:
-            background.submit(video[0].release)
+        if video is not None:  # after the last frame's write: jobs run in order
+            background.submit(video.close)
     columns = ["frame", "name", "timestamp", "label", "x", "y", "w", "h", "area",
                "mean_likelihood", "u", "v", "azimuth_deg", "elevation_deg", "ground_distance_m"]
     table = pd.DataFrame(rows, columns=columns)
@@ -173,13 +173,21 @@ def run_detect(frames, camera: calib.CameraModel, matcher, out: Path, *,
     return table
 
 
-def _write_video_frame(video: list, path: Path, image: np.ndarray, fps: float | None) -> None:
-    """Append ``image`` to the video at ``path``, opened on the first frame (``video`` holds the
-    writer)."""
-    if not video:
-        video.append(cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), fps or 15.0,
-                                     (image.shape[1], image.shape[0])))
-    video[0].write(image)
+class _VideoSink:
+    """An mp4 at ``path`` opened on the first frame written (its size is the frame's)."""
+
+    def __init__(self, path: Path, fps: float | None) -> None:
+        self.path, self.fps, self.writer = path, fps or 15.0, None
+
+    def write(self, image: np.ndarray) -> None:
+        if self.writer is None:
+            self.writer = cv2.VideoWriter(str(self.path), cv2.VideoWriter_fourcc(*"mp4v"),
+                                          self.fps, (image.shape[1], image.shape[0]))
+        self.writer.write(image)
+
+    def close(self) -> None:
+        if self.writer is not None:
+            self.writer.release()
 
 
 WINDOW = "fisheyemotion detect"
