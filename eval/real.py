@@ -8,7 +8,12 @@ consecutive frames are compared (``frame_gap=1``); the rest are the defaults, sc
 camera's resolution.
 
 The moving object of the office clip is the wearer's arm, one region: the share of valid pixels
-flagged *outside the largest region* bounds the static background flagged. Each clip runs twice:
+flagged *outside the largest region* bounds the static background flagged. Where a clip has
+ground-truth masks (``ground_truth/moving/<camera>/<frame>.png``, written from the Aria Digital
+Twin's instance segmentation by the script beside them: 255 on objects that move, 128 in the
+wearer's 2-D box, 0 static), the static background flagged is measured on them: the flagged share
+of the valid static pixels outside the wearer's box and more than :data:`TOLERANCE_PX` from a
+moving object. Each clip runs twice:
 with its VIO poses, and with none (estimated from the images, :mod:`fisheyemotion.egomotion`),
 where the estimated rotations are compared with the VIO's.
 """
@@ -18,6 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
@@ -32,7 +38,11 @@ from fisheyemotion.road import Road
 
 from .pose_sources import pose_errors
 
-__all__ = ["RealClip", "find_clips", "run_real"]
+__all__ = ["RealClip", "TOLERANCE_PX", "find_clips", "run_real", "static_flagged"]
+
+#: Boundary tolerance of the ground-truth measure: pixels this close to a moving object are not
+#: scored (a dense flow's 15-px window and one 6-px grid cell cannot place a boundary closer).
+TOLERANCE_PX = 16
 
 
 @dataclass(frozen=True)
@@ -56,6 +66,38 @@ def find_clips(data: Path) -> list[RealClip]:
     return clips
 
 
+def static_flagged(mask: np.ndarray, truth: np.ndarray, valid: np.ndarray,
+                   tolerance: int = TOLERANCE_PX) -> tuple[float, float]:
+    """Static background flagged and moving-object pixels flagged, against a ground-truth mask.
+
+    Parameters
+    ----------
+    mask : (H, W) bool
+        The detection.
+    truth : (H, W) uint8
+        255 on moving objects, 128 where moving and static cannot be told apart (the wearer's
+        box), 0 static.
+    valid : (H, W) bool
+        The camera's valid pixels.
+    tolerance : int
+        Pixels within this distance of a moving object are not scored as static.
+
+    Returns
+    -------
+    static_share, moving_share : float
+        The flagged fraction of the scored static pixels and of the moving objects' pixels
+        (NaN where there are none).
+    """
+    moving = truth == 255
+    size = 2 * tolerance + 1
+    band = cv2.dilate(moving.astype(np.uint8),
+                      cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))) > 0
+    static = valid & (truth == 0) & ~band
+    share = float(mask[static].mean()) if static.any() else np.nan
+    found = float(mask[moving].mean()) if moving.any() else np.nan
+    return share, found
+
+
 def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Figure | None]:
     """Detect on every clip; a table (one row per clip camera) and a figure of the last
     annotated frame of each."""
@@ -71,7 +113,7 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
         last = None
         for given in (True, False):  # the clip's VIO poses, then none (estimated)
             det = MotionDetector(cam, Road.unknown(), params.for_camera(cam))
-            flagged, outside, regions, used, vio = [], [], [], [], []
+            flagged, outside, regions, used, vio, truth = [], [], [], [], [], []
             for f in frames:
                 pose = matcher(f.index, f.name, f.stamp)[1]
                 result = det.apply(f.image, pose if given else None)
@@ -85,6 +127,10 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
                 flagged.append(mask.sum() / valid.sum())
                 outside.append((mask.sum() - biggest) / valid.sum())
                 regions.append(len(result.regions))
+                gt = clip.folder.parent / "ground_truth" / "moving" / clip.camera / f.name
+                if gt.is_file():
+                    truth.append(static_flagged(mask, cv2.imread(str(gt), cv2.IMREAD_GRAYSCALE),
+                                                valid))
                 if given:
                     last = (f.image, result, f"{clip.name} / {clip.camera} #{f.index}")
             if given:
@@ -92,7 +138,10 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
                             "flagged %": 100 * float(np.mean(flagged)) if flagged else np.nan,
                             "outside the largest region %": 100 * float(np.mean(outside))
                             if outside else np.nan,
-                            "regions per frame": float(np.mean(regions)) if regions else np.nan})
+                            "regions per frame": float(np.mean(regions)) if regions else np.nan,
+                            "ground truth: static flagged %": _mean_percent(truth, 0),
+                            "ground truth: moving objects' pixels flagged %":
+                            _mean_percent(truth, 1)})
                 if last is not None:
                     shown.append(last)
             else:
@@ -100,7 +149,8 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
                 row.update({"no poses: outside the largest region %":
                             100 * float(np.mean(outside)) if outside else np.nan,
                             "no poses: rotation error vs VIO, median / max (deg)":
-                            f"{errors.median():.2f} / {errors.max():.2f}"})
+                            f"{errors.median():.2f} / {errors.max():.2f}",
+                            "no poses, ground truth: static flagged %": _mean_percent(truth, 0)})
         rows.append(row)
     fig = None
     if shown:
@@ -113,3 +163,7 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
         fig.suptitle("Real fisheye clips (Project Aria): detected regions in green, no road "
                      "(indoors, head-mounted)", fontsize=9)
     return pd.DataFrame(rows), fig
+
+
+def _mean_percent(pairs: list[tuple[float, float]], i: int) -> float:
+    return 100 * float(np.mean([p[i] for p in pairs])) if pairs else np.nan
