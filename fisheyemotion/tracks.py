@@ -24,9 +24,14 @@ _LK_GUESSED = {**_LK, "maxLevel": 1}
 def track_corners(gray0: NDArray[np.uint8], gray1: NDArray[np.uint8], *,
                   mask: NDArray | None = None, corners: int = 600,
                   min_distance: int = 7, fb_tolerance: float = 0.5,
-                  predict: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None
+                  predict: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
+                  detect_scale: int = 1, iterations: int = 20
                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Corners of ``gray0`` (where ``mask`` is non-zero) and where they are in ``gray1``.
+
+    ``detect_scale`` > 1 looks for the corners in ``gray0`` shrunk by that factor (a quarter of
+    the work at 2; the tracking is at full resolution); ``iterations`` caps Lucas-Kanade's
+    iterations per pyramid level.
 
     ``predict`` maps corner pixels (N, 2) to where they are expected in ``gray1`` (NaN: no
     guess): the tracker starts there, so that large displacements the pyramid cannot reach (the
@@ -39,25 +44,41 @@ def track_corners(gray0: NDArray[np.uint8], gray1: NDArray[np.uint8], *,
         ``gray1`` to ``gray0``.
     """
     m = None if mask is None else np.where(mask, 255, 0).astype(np.uint8)
-    found = cv2.goodFeaturesToTrack(gray0, maxCorners=corners, qualityLevel=0.005,
-                                    minDistance=min_distance, mask=m)
+    if detect_scale > 1:
+        f = 1.0 / detect_scale
+        small = cv2.resize(gray0, None, fx=f, fy=f, interpolation=cv2.INTER_AREA)
+        small_mask = None if m is None else cv2.resize(m, (small.shape[1], small.shape[0]),
+                                                       interpolation=cv2.INTER_NEAREST)
+        found = cv2.goodFeaturesToTrack(small, maxCorners=corners, qualityLevel=0.005,
+                                        minDistance=max(1, min_distance // detect_scale),
+                                        mask=small_mask)
+        if found is not None:  # a shrunk pixel's centre in full-resolution pixels
+            found = (found * detect_scale + 0.5 * (detect_scale - 1)).astype(np.float32)
+    else:
+        found = cv2.goodFeaturesToTrack(gray0, maxCorners=corners, qualityLevel=0.005,
+                                        minDistance=min_distance, mask=m)
     if found is None or len(found) < 8:
         return np.empty((0, 2)), np.empty((0, 2))
     if predict is None:
-        fwd, ok1, _ = cv2.calcOpticalFlowPyrLK(gray0, gray1, found, None, **_LK)
-        back, ok2, _ = cv2.calcOpticalFlowPyrLK(gray1, gray0, fwd, None, **_LK)
+        lk = _LK if iterations == 20 else {
+            **_LK, "criteria": (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, iterations, 0.01)}
+        fwd, ok1, _ = cv2.calcOpticalFlowPyrLK(gray0, gray1, found, None, **lk)
+        back, ok2, _ = cv2.calcOpticalFlowPyrLK(gray1, gray0, fwd, None, **lk)
     else:
         guess = np.asarray(predict(found[:, 0].astype(np.float64)), dtype=np.float64)
         guess = np.where(np.isfinite(guess), guess, found[:, 0])
         guess = np.ascontiguousarray(guess.reshape(-1, 1, 2), dtype=np.float32)
         # From a guess only fine levels: a coarse level would lead a patch that the perspective
         # deforms (the road near the camera) away from it.
+        guessed = _LK_GUESSED if iterations == 20 else {
+            **_LK_GUESSED,
+            "criteria": (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, iterations, 0.01)}
         fwd, ok1, _ = cv2.calcOpticalFlowPyrLK(gray0, gray1, found, guess,
-                                               flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **_LK_GUESSED)
+                                               flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **guessed)
         # Back with the predicted displacement reversed (not from the corners themselves).
         back_guess = np.ascontiguousarray(fwd - (guess - found), dtype=np.float32)
         back, ok2, _ = cv2.calcOpticalFlowPyrLK(gray1, gray0, fwd, back_guess,
-                                                flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **_LK_GUESSED)
+                                                flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **guessed)
     good = (ok1[:, 0] == 1) & (ok2[:, 0] == 1) & (
         np.linalg.norm(back - found, axis=-1)[:, 0] < fb_tolerance)
     return found[good, 0].astype(np.float64), fwd[good, 0].astype(np.float64)

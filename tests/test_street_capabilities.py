@@ -226,3 +226,19 @@ def ndimage_dilate(mask):
     from scipy import ndimage
 
     return ndimage.binary_dilation(mask, structure=np.ones((3, 3), bool))
+
+
+@given(st.integers(1, 6), st.integers(1, 24), st.floats(0.0, 0.9), st.integers(0, 2**31 - 1))
+@settings(max_examples=60)
+def test_row_percentile_matches_numpy(rows, cols, missing, seed):
+    import warnings
+
+    from fisheyemotion.ground_contact import _row_nanpercentile
+
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(rows, cols))
+    a[rng.random(a.shape) < missing] = np.nan
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN rows
+        expected = np.nanpercentile(a, 75, axis=1)
+    np.testing.assert_allclose(_row_nanpercentile(a, 75.0), expected, rtol=1e-12, atol=1e-12)
