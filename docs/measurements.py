@@ -109,7 +109,7 @@ def road_estimates(names=("preceding", "street_kb", "highway", "crossing", "stre
                 heights.append(abs(ground.road.height(pose[:3, 3]) - truth.height(pose[:3, 3])))
             found.append(first)
     print(f"road found at frame {sorted(set(found))}; over the first {frames} frames: tilt "
-          f"median {np.median(tilts):.2f} deg, 90th percentile {np.percentile(tilts, 90):.2f} "
+          f"median {np.median(tilts):.3f} deg, 90th percentile {np.percentile(tilts, 90):.3f} "
           f"deg; height error median {100 * np.median(heights):.1f} cm, max "
           f"{100 * np.max(heights):.1f} cm")
 

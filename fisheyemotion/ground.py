@@ -1,11 +1,13 @@
 """The road plane in the user's world frame, estimated from the stream itself.
 
 Users' poses come in their own world frame (a SLAM map, the first camera, an odometry frame): the
-road is rarely ``z = 0``. :class:`GroundEstimator` tracks corners in the lower image between the
-frames of each pair (OpenCV's pyramidal Lucas-Kanade, 6 levels, forward-backward checked: it
-needs no prior, unlike the dense flow, which follows whatever road it is warped by),
-triangulates them with the poses, and fits a plane to the points below the camera: RANSAC
-(scikit-image's) with a plane model, then a least-squares fit to the inliers.
+road is rarely ``z = 0``. :class:`GroundEstimator` tracks corners in the lower image between
+consecutive frames (OpenCV's pyramidal Lucas-Kanade, forward-backward checked, against the second
+frame warped back by the flow the road found so far, or a provisional one, predicts: the tracker
+measures the residual from there, so a wrong prediction is corrected rather than followed, as a
+dense flow's smoothing would), triangulates them with the poses, and fits a plane to the points
+below the camera: RANSAC (scikit-image's) with a plane model, then a least-squares fit to the
+inliers.
 
 A fit is accepted when it is plausible:
 
@@ -27,7 +29,6 @@ import warnings
 import numpy as np
 from numpy.typing import NDArray
 
-from .prior import static_scene_targets
 from .road import Road
 from .static_scene import TRIANGULATION_PARALLAX, triangulate_range, world_points
 from .tracks import track_corners
@@ -158,16 +159,11 @@ class GroundEstimator:
         lower[h // 2:] = True
         if mask is not None:
             lower &= np.asarray(mask, dtype=bool)
-        # Corners start where the road (or a provisional one) would take them: the tracker's
+        # The road (or a provisional one) predicts where each road point goes: the tracker's
         # pyramid does not reach the road's displacements near a fast vehicle (60-100 px between
         # consecutive frames at the bottom of a fisheye image on a highway).
         road = self.road or provisional_road(pose0, pose1, self.camera_height)
-
-        def predict(pixels: NDArray[np.float64]) -> NDArray[np.float64]:
-            rays, _ = camera.unproject(pixels)
-            return static_scene_targets(camera, rays, pose0, pose1, road, PREDICTION_DISTANCE)[0]
-
-        u0, u1 = track_corners(gray0, gray1, mask=lower, predict=predict)
+        u0, u1 = self._warped_tracks(camera, gray0, gray1, pose0, pose1, road, lower)
         if len(u0) < 10:
             return None
         r0, v0 = camera.unproject(u0)
@@ -184,6 +180,33 @@ class GroundEstimator:
             return None
         return self.fit(np.concatenate(self._points), pose0[:3, 3], pose0[:3, 1],
                         expected_up=level_up(pose0, pose1))
+
+    def _warped_tracks(self, camera, gray0, gray1, pose0, pose1, road, lower):
+        """Corners of ``gray0`` (in ``lower``) and where they are in ``gray1``: tracked against
+        ``gray1`` warped back by the flow the road predicts (:class:`fisheyemotion.prior.
+        EgoFlowPrior`, as the dense flow's warp), so that the tracker measures only a small
+        residual, and the road's perspective and fisheye deformation between the frames, which
+        biases a patch tracker, is undone (the road's tilt 0.016 deg median over the first 12
+        frames of the demo scenes when corners started at their predicted positions instead,
+        0.008 deg warped)."""
+        import cv2
+
+        from .calib.base import pixel_grid
+        from .prior import EgoFlowPrior
+        if getattr(self, "_prior", None) is None or self._prior.camera is not camera:
+            self._prior = EgoFlowPrior(camera, distance=PREDICTION_DISTANCE)
+            w, h = camera.width, camera.height
+            self._coords = pixel_grid(w, h).astype(np.float32)
+        prior, _ = self._prior(pose0, pose1, road)
+        warped = cv2.remap(gray1, self._coords + prior, None, cv2.INTER_LINEAR,
+                           borderMode=cv2.BORDER_REPLICATE)
+        u0, r = track_corners(gray0, warped, mask=lower)
+        if not len(u0):
+            return u0, r
+        at = r.astype(np.float32)
+        px = cv2.remap(prior[..., 0], at[:, 0:1], at[:, 1:2], cv2.INTER_LINEAR)[:, 0]
+        py = cv2.remap(prior[..., 1], at[:, 0:1], at[:, 1:2], cv2.INTER_LINEAR)[:, 0]
+        return u0, r + np.stack([px, py], axis=-1)
 
     def fit(self, points: NDArray[np.float64], centre: NDArray[np.float64],
             down: NDArray[np.float64], *, expected_up: NDArray | None = None) -> Road | None:
