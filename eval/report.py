@@ -449,7 +449,8 @@ def write_report(results: list[SequenceResult], out: str | Path, params: Params,
                "positive-depth constraints only), consecutive frames. Each clip runs with its own "
                "(VIO) poses and with none: the \"no poses\" columns, poses estimated from the "
                "images and their rotations compared with the VIO's.", "",
-               real[0].to_markdown(index=False, floatfmt=".2f")]
+               real[0].astype(object).where(real[0].notna(), None).to_markdown(
+                   index=False, floatfmt=".2f", missingval="–")]
         if "real.png" in images:
             md += ["", "![Figure 5. Detections on the real clips (green), with their own "
                    "poses.](real.png)"]
