@@ -162,7 +162,31 @@ class GroundEstimator:
         # The road (or a provisional one) predicts where each road point goes: the tracker's
         # pyramid does not reach the road's displacements near a fast vehicle (60-100 px between
         # consecutive frames at the bottom of a fisheye image on a highway).
+        found_before = self.road is not None
         road = self.road or provisional_road(pose0, pose1, self.camera_height)
+        points = self._pair_points(camera, gray0, gray1, pose0, pose1, road, lower)
+        if points is None:
+            return None
+        self._points = (self._points + [points])[-12:]
+        self._pairs += 1
+        # Refit with every pair while the point set is young, then now and then.
+        if self.road is not None and self._pairs > self.early_pairs \
+                and self._pairs % self.refit_every:
+            return None
+        fitted = self.fit(np.concatenate(self._points), pose0[:3, 3], pose0[:3, 1],
+                          expected_up=level_up(pose0, pose1))
+        if fitted is not None and not found_before:
+            # The first road: track this pair again, warped by it rather than by the guess.
+            again = self._pair_points(camera, gray0, gray1, pose0, pose1, fitted, lower)
+            if again is not None:
+                self._points[-1] = again
+                fitted = self.fit(np.concatenate(self._points), pose0[:3, 3], pose0[:3, 1],
+                                  expected_up=level_up(pose0, pose1)) or fitted
+        return fitted
+
+    def _pair_points(self, camera, gray0, gray1, pose0, pose1, road, lower):
+        """World points of the corners tracked from ``gray0`` to ``gray1`` (:meth:`_warped_tracks`)
+        and triangulated with the poses, or None when fewer than 10 are tracked."""
         u0, u1 = self._warped_tracks(camera, gray0, gray1, pose0, pose1, road, lower)
         if len(u0) < 10:
             return None
@@ -171,15 +195,7 @@ class GroundEstimator:
         lam, ok = triangulate_range(r0, r1, pose0, pose1, far=100.0,
                                     min_parallax=TRIANGULATION_PARALLAX)
         ok &= v0 & v1
-        points = world_points(r0[ok], lam[ok], pose0)
-        self._points = (self._points + [points])[-12:]
-        self._pairs += 1
-        # Refit with every pair while the point set is young, then now and then.
-        if self.road is not None and self._pairs > self.early_pairs \
-                and self._pairs % self.refit_every:
-            return None
-        return self.fit(np.concatenate(self._points), pose0[:3, 3], pose0[:3, 1],
-                        expected_up=level_up(pose0, pose1))
+        return world_points(r0[ok], lam[ok], pose0)
 
     def _warped_tracks(self, camera, gray0, gray1, pose0, pose1, road, lower):
         """Corners of ``gray0`` (in ``lower``) and where they are in ``gray1``: tracked against
