@@ -116,11 +116,17 @@ def test_the_road_is_found_in_the_first_camera_frame(road_frames):
     truth = fm.Road().transformed(new_from_scene)
     det = fm.MotionDetector(CAM, "auto", fm.Params(frame_gap=1))
     assert not det.road.known
+    tilts, offsets = [], []
     for f in road_frames:
         det.apply(f.image, new_from_scene @ f.pose)
-    assert det.road.known
-    angle = np.degrees(np.arccos(np.clip(det.road.up @ truth.up, -1, 1)))
-    assert angle < 3.0 and abs(det.road.offset - truth.offset) < 0.1
+        if det.road.known:
+            tilts.append(np.degrees(np.arccos(np.clip(det.road.up @ truth.up, -1, 1))))
+            offsets.append(abs(det.road.offset - truth.offset))
+    # Found at the first pair; corners tracked against the next frame warped by the road's flow
+    # (and the first pair again by the road it found): every estimate within 0.08 deg (up to
+    # 0.11 deg when corners only started at their predicted places) and 5 mm.
+    assert len(tilts) == len(road_frames) - 1
+    assert max(tilts) < 0.08 and max(offsets) < 0.005
 
 
 def test_camera_height_rejects_an_implausible_plane():
