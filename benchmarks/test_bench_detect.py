@@ -226,3 +226,30 @@ def test_pose_estimation(benchmark, frames, what):
     result = benchmark.pedantic(lambda tracker: tracker.step(grays[3]), setup=primed,
                                 rounds=30, warmup_rounds=2)
     assert result is not None
+
+
+@pytest.mark.benchmark(group="road-640x480")
+@pytest.mark.parametrize("what", ["track_pair", "fit", "peer_farneback"])
+def test_road_estimate(benchmark, frames, what):
+    """The road estimate of ``road='auto'``: one consecutive pair's corners tracked against the
+    next frame warped by the road and triangulated, and one plane fit to the points of the
+    first pairs, beside a Farneback flow of the same pair."""
+    from fisheyemotion.ground import GroundEstimator, level_up
+
+    fr, roi = frames
+    grays = [_gray(f) for f in fr[:6]]
+    if what == "peer_farneback":
+        benchmark(fm.MotionDetector(CAM, params=fm.Params.paper())._flow, grays[4], grays[5])
+        return
+    ground = GroundEstimator()
+    for g, f in zip(grays, fr, strict=False):
+        ground.observe(CAM, g, f.pose, mask=roi > 0)
+    assert ground.road is not None
+    lower = np.zeros(grays[0].shape, bool)
+    lower[CAM.height // 2:] = True
+    if what == "track_pair":
+        benchmark(ground._pair_points, CAM, grays[4], grays[5], fr[4].pose, fr[5].pose,
+                  ground.road, lower & (roi > 0))
+    else:
+        points, p0, p1 = np.concatenate(ground._points), fr[4].pose, fr[5].pose
+        benchmark(ground.fit, points, p0[:3, 3], p0[:3, 1], expected_up=level_up(p0, p1))

@@ -54,7 +54,7 @@ class PlaneModel:
                       ) -> PlaneModel:
         centre = points.mean(axis=0)
         try:
-            _, s, vt = np.linalg.svd(points - centre)
+            _, s, vt = np.linalg.svd(points - centre, full_matrices=False)
         except np.linalg.LinAlgError:
             return cls()
         if len(points) < 3 or s[1] < 1e-9:
@@ -133,7 +133,7 @@ class GroundEstimator:
         self.max_tilt = 8.0
         self.early_pairs = 12
         # Once the road is found and the early pairs are in, corners are tracked on one pair in
-        # this many (the tracking is the estimate's main cost, 30 ms a pair at 640x480).
+        # this many (the tracking is the estimate's main cost: 15 ms a pair at 640x480, a fit 1 ms).
         self.settled_every = 3
         self._frames = 0
 
