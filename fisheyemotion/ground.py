@@ -136,6 +136,9 @@ class GroundEstimator:
         # this many (the tracking is the estimate's main cost: 15 ms a pair at 640x480, a fit 1 ms).
         self.settled_every = 3
         self._frames = 0
+        # The road's predicted flow for the tracker's warp, and the identity map it adds to.
+        self._prior = None
+        self._coords: NDArray[np.float32] | None = None
 
     def observe(self, camera, gray: NDArray[np.uint8], pose: NDArray, *,
                 mask: NDArray | None = None) -> Road | None:
@@ -209,7 +212,7 @@ class GroundEstimator:
 
         from .calib.base import pixel_grid
         from .prior import EgoFlowPrior
-        if getattr(self, "_prior", None) is None or self._prior.camera is not camera:
+        if self._prior is None or self._prior.camera is not camera:
             self._prior = EgoFlowPrior(camera, distance=PREDICTION_DISTANCE)
             w, h = camera.width, camera.height
             self._coords = pixel_grid(w, h).astype(np.float32)
