@@ -127,6 +127,8 @@ def test_a_stream_without_poses_but_with_the_camera_height_keeps_its_road_terms(
     assert det.ground is not None and det._tracker.metric
 
 
+# The unrefined noisy poses flood the image on purpose (the warning says so).
+@pytest.mark.filterwarnings("ignore:detection. more than:UserWarning")
 def test_pose_refinement_repairs_noisy_rotations(frames):
     from .scenes import rotation
 
