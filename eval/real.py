@@ -135,22 +135,21 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
                     last = (f.image, result, f"{clip.name} / {clip.camera} #{f.index}")
             if given:
                 row.update({"detections": len(flagged),
-                            "flagged %": 100 * float(np.mean(flagged)) if flagged else np.nan,
-                            "outside the largest region %": 100 * float(np.mean(outside))
-                            if outside else np.nan,
+                            "flagged %": _percent(flagged),
+                            "outside the largest region %": _percent(outside),
                             "regions per frame": float(np.mean(regions)) if regions else np.nan,
-                            "ground truth: static flagged %": _mean_percent(truth, 0),
+                            "ground truth: static flagged %": _percent([t[0] for t in truth]),
                             "ground truth: moving objects' pixels flagged %":
-                            _mean_percent(truth, 1)})
+                            _percent([t[1] for t in truth])})
                 if last is not None:
                     shown.append(last)
             else:
                 errors = pose_errors(np.array(used), np.array(vio), 1).rotation_error_deg
-                row.update({"no poses: outside the largest region %":
-                            100 * float(np.mean(outside)) if outside else np.nan,
+                row.update({"no poses: outside the largest region %": _percent(outside),
                             "no poses: rotation error vs VIO, median / max (deg)":
                             f"{errors.median():.2f} / {errors.max():.2f}",
-                            "no poses, ground truth: static flagged %": _mean_percent(truth, 0)})
+                            "no poses, ground truth: static flagged %":
+                            _percent([t[0] for t in truth])})
         rows.append(row)
     fig = None
     if shown:
@@ -165,5 +164,6 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
     return pd.DataFrame(rows), fig
 
 
-def _mean_percent(pairs: list[tuple[float, float]], i: int) -> float:
-    return 100 * float(np.mean([p[i] for p in pairs])) if pairs else np.nan
+def _percent(shares: list[float]) -> float:
+    """The mean of ``shares`` in percent (NaN for none)."""
+    return 100 * float(np.mean(shares)) if shares else np.nan

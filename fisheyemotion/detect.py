@@ -20,11 +20,19 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from .calib.base import CameraModel, pixel_grid
+from .calib.base import CameraModel
 from .calib.transforms import check_rigid, rotation_angle, vector_angle
 from .constraints import ConstraintResult, constraints
 from .egomotion import PoseTracker
-from .flow import FlowEstimator, grid_average, grid_centres, grid_gather, grid_transfer, grid_upsample
+from .flow import (
+    FlowEstimator,
+    grid_average,
+    grid_centres,
+    grid_gather,
+    grid_transfer,
+    grid_upsample,
+    warp_by,
+)
 from .frames import to_gray
 from .ground import GroundEstimator, provisional_road
 from .ground_contact import standing_regions
@@ -204,7 +212,6 @@ class MotionDetector:
         self._refine_state: tuple[NDArray, NDArray] | None = None
         self._last_mask: NDArray[np.bool_] | None = None
         self.last_pose: NDArray[np.float64] | None = None
-        self._pixel_coords = None
         self._pixel_angle: NDArray[np.float64] | None = None
         self._view: NDArray[np.bool_] | None = None
         self._temporal: tuple[NDArray, NDArray] | None = None
@@ -361,8 +368,7 @@ class MotionDetector:
                                   view=self._pixel_valid, scene=self.scene)
         if mode == "ego":
             return self._flow(a, b, prior)
-        maps = self._coords() + prior
-        warped = cv2.remap(b, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        warped = warp_by(b, prior)
         # Where the static scene leaves the view there is nothing to match: keep `a` there, so
         # that the residual is 0 instead of garbage that the flow's smoothing spreads around.
         np.copyto(warped, a, where=~seen)
@@ -370,13 +376,6 @@ class MotionDetector:
         residual = self._flow(a, warped)
         residual += prior
         return residual
-
-    def _coords(self) -> NDArray[np.float32]:
-        """``(H, W, 2)`` float32 pixel coordinates ``(u, v)`` (a remap map of the identity)."""
-        if self._pixel_coords is None:
-            w, h = self.size
-            self._pixel_coords = pixel_grid(w, h).astype(np.float32)
-        return self._pixel_coords
 
     def _detect_gray(self, g0, g1, t0, t1, *, stream: bool = False) -> Detection:
         if self.params.fb_check:
@@ -415,8 +414,7 @@ class MotionDetector:
     def _consistent_cells(self, flow, cell_flow, backward) -> NDArray[np.bool_]:
         """Cells whose mean forward-backward error is within tolerance (``cell_flow``: the
         cells' mean flow, already computed by the caller)."""
-        back_at = cv2.remap(backward, self._coords() + flow, None, cv2.INTER_LINEAR,
-                            borderMode=cv2.BORDER_REPLICATE)
+        back_at = warp_by(backward, flow)
         error = np.linalg.norm(flow + back_at, axis=-1)
         p = self.params
         cell_error = grid_average(error, p.grid)

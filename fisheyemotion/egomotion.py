@@ -38,7 +38,8 @@ from .calib.base import CameraModel
 from .calib.transforms import make_transform
 from .tracks import track_corners
 
-__all__ = ["PoseTracker", "dominant_background_pose", "relative_pose", "road_scale"]
+__all__ = ["PoseTracker", "dominant_background_pose", "relative_pose", "road_depth",
+           "road_scale"]
 
 #: Degrees below the level horizon from which correspondences are taken to lie on the road.
 ROAD_ELEVATION = 20.0
@@ -133,7 +134,17 @@ def relative_pose(rays0: NDArray[np.float64], rays1: NDArray[np.float64], *,
 def road_scale(rays0: NDArray[np.float64], rays1: NDArray[np.float64],
                cam1_from_cam0: NDArray[np.float64], camera_height: float, *,
                tolerance: float = math.radians(0.3)) -> float | None:
-    """Metres per unit of ``cam1_from_cam0``'s translation, from the road seen in both views.
+    """Metres per unit of ``cam1_from_cam0``'s translation: ``camera_height`` over
+    :func:`road_depth` (None where that is None)."""
+    depth = road_depth(rays0, rays1, cam1_from_cam0, tolerance=tolerance)
+    return None if depth is None else camera_height / depth
+
+
+def road_depth(rays0: NDArray[np.float64], rays1: NDArray[np.float64],
+               cam1_from_cam0: NDArray[np.float64], *,
+               tolerance: float = math.radians(0.3)) -> float | None:
+    """The road's depth below the first camera in units of ``cam1_from_cam0``'s translation,
+    from the road seen in both views.
 
     Parameters
     ----------
@@ -143,8 +154,6 @@ def road_scale(rays0: NDArray[np.float64], rays1: NDArray[np.float64],
         threshold is in pinhole units, which magnify the errors of wide rays).
     cam1_from_cam0 : ndarray, shape (4, 4)
         The relative pose, translation of any length.
-    camera_height : float
-        Metres above the road.
     tolerance : float
         Radians off the epipolar plane (:class:`PoseTracker` uses ``EPIPOLAR_PIXELS`` pixels'
         angle at the image centre).
@@ -184,8 +193,12 @@ def road_scale(rays0: NDArray[np.float64], rays1: NDArray[np.float64],
     smooth = np.convolve(counts, np.ones(3), mode="same")
     k = int(np.argmax(smooth))
     near = np.abs(logs - 0.5 * (edges[k] + edges[k + 1])) <= 0.03
-    height = float(np.exp(np.median(logs[near])))
-    return camera_height / height
+    return float(np.exp(np.median(logs[near])))
+
+
+def _still(moved: NDArray[np.float64]) -> bool:
+    """Whether tracks that moved by ``moved`` pixels (at least 8) say the camera stood still."""
+    return len(moved) >= 8 and bool(np.median(moved) <= STILL_PIXELS)
 
 
 def _spread(pixels: NDArray[np.float64], shape: tuple[int, ...]) -> int:
@@ -214,7 +227,12 @@ def dominant_background_pose(rays0: NDArray[np.float64], rays1: NDArray[np.float
     **ransac
         ``threshold``, ``max_iterations`` of :func:`relative_pose`.
     """
-    first, inliers, second, others = _two_hypotheses(rays0, rays1, **ransac)
+    return _background(*_two_hypotheses(rays0, rays1, **ransac), pixels0, shape)
+
+
+def _background(first, inliers, second, others, pixels0, shape):
+    """Of two hypotheses (:func:`_two_hypotheses`), the one whose inliers cover more of the
+    image: ``(pose, inliers)``."""
     if second is not None and _spread(pixels0[others], shape) > _spread(pixels0[inliers], shape):
         return second, others
     return first, inliers
@@ -291,29 +309,25 @@ class PoseTracker:
         mask = self.mask if exclude is None else (
             (np.ones(gray.shape, bool) if self.mask is None else self.mask) & ~exclude)
         transform, inliers, r0, r1, moved, contested = self._estimate(last, gray, mask, fast=True)
-        still = len(moved) >= 8 and np.median(moved) <= STILL_PIXELS
-        careful = not still and (transform is None or contested or len(moved) < FAST_MIN_TRACKS)
-        scale = None
-        if not careful and transform is not None and self.camera_height is not None:
-            scale = self._road_scale(r0, r1, transform)
-            # No scale measured yet, and too few road tracks for one: look harder.
-            careful = scale is None and not self._scales
+        careful = not _still(moved) and (transform is None or contested
+                                         or len(moved) < FAST_MIN_TRACKS)
+        depth = None
+        if not careful and transform is not None:
+            depth = self._road_depth(r0, r1, transform)
+            # A scale wanted, none measured yet, and too few road tracks for one: look harder.
+            careful = self.camera_height is not None and depth is None and not self._scales
         if careful:
             transform, inliers, r0, r1, moved, _ = self._estimate(last, gray, mask, fast=False)
-            if transform is not None and self.camera_height is not None:
-                scale = self._road_scale(r0, r1, transform)
-        self.still = len(moved) >= 8 and np.median(moved) <= STILL_PIXELS
+            depth = None if transform is None else self._road_depth(r0, r1, transform)
+        self.still = _still(moved)
         if len(moved) < 8 or self.still:  # a still camera has no baseline
             return None
         self.inlier_ratio = float(inliers.mean())
-        if scale is not None:
-            self._scales = (self._scales + [scale])[-SCALE_MEMORY:]
         self._motion = None if transform is None else transform.copy()
-        if transform is not None:
-            unit = road_scale(r0, r1, transform, 1.0,
-                              tolerance=EPIPOLAR_PIXELS * self._pixel_angle)
-            if unit is not None:
-                self._depths = (self._depths + [1.0 / unit])[-SCALE_MEMORY:]
+        if depth is not None:
+            self._depths = (self._depths + [depth])[-SCALE_MEMORY:]
+            if self.camera_height is not None:
+                self._scales = (self._scales + [self.camera_height / depth])[-SCALE_MEMORY:]
         return transform
 
     def _predictor(self):
@@ -332,9 +346,8 @@ class PoseTracker:
             return static_scene_targets(self.camera, rays, pose0, pose1, road, 1e3)[0]
         return predict
 
-    def _road_scale(self, r0, r1, transform) -> float | None:
-        return road_scale(r0, r1, transform, self.camera_height,
-                          tolerance=EPIPOLAR_PIXELS * self._pixel_angle)
+    def _road_depth(self, r0, r1, transform) -> float | None:
+        return road_depth(r0, r1, transform, tolerance=EPIPOLAR_PIXELS * self._pixel_angle)
 
     def _estimate(self, last, gray, mask, *, fast: bool):
         """Track and estimate one pair: ``(transform, inliers, rays0, rays1, displacements,
@@ -357,14 +370,12 @@ class PoseTracker:
         ok = ok0 & ok1
         r0, r1, u0 = r0[ok], r1[ok], u0[ok]
         moved = np.linalg.norm(u1[ok] - u0, axis=-1)
-        if len(moved) < 8 or np.median(moved) <= STILL_PIXELS:
+        if len(moved) < 8 or _still(moved):
             return None, np.zeros(len(moved), bool), r0, r1, moved, False
         first, inliers, second, others = _two_hypotheses(r0, r1, **ransac)
         contested = second is not None and others.sum() >= RIVAL_SHARE * inliers.sum()
-        if second is not None and _spread(u0[others], gray.shape) > _spread(u0[inliers],
-                                                                             gray.shape):
-            return second, others, r0, r1, moved, contested
-        return first, inliers, r0, r1, moved, contested
+        transform, inliers = _background(first, inliers, second, others, u0, gray.shape)
+        return transform, inliers, r0, r1, moved, contested
 
     def __call__(self, gray: NDArray[np.uint8],
                  exclude: NDArray[np.bool_] | None = None) -> NDArray[np.float64]:

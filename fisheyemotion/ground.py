@@ -136,9 +136,8 @@ class GroundEstimator:
         # this many (the tracking is the estimate's main cost: 15 ms a pair at 640x480, a fit 1 ms).
         self.settled_every = 3
         self._frames = 0
-        # The road's predicted flow for the tracker's warp, and the identity map it adds to.
+        # The road's predicted flow for the tracker's warp (per camera).
         self._prior = None
-        self._coords: NDArray[np.float32] | None = None
 
     def observe(self, camera, gray: NDArray[np.uint8], pose: NDArray, *,
                 mask: NDArray | None = None) -> Road | None:
@@ -210,15 +209,12 @@ class GroundEstimator:
         0.008 deg warped)."""
         import cv2
 
-        from .calib.base import pixel_grid
+        from .flow import warp_by
         from .prior import EgoFlowPrior
         if self._prior is None or self._prior.camera is not camera:
             self._prior = EgoFlowPrior(camera, distance=PREDICTION_DISTANCE)
-            w, h = camera.width, camera.height
-            self._coords = pixel_grid(w, h).astype(np.float32)
         prior, _ = self._prior(pose0, pose1, road)
-        warped = cv2.remap(gray1, self._coords + prior, None, cv2.INTER_LINEAR,
-                           borderMode=cv2.BORDER_REPLICATE)
+        warped = warp_by(gray1, prior)
         u0, r = track_corners(gray0, warped, mask=lower)
         if not len(u0):
             return u0, r

@@ -16,8 +16,7 @@ __all__ = ["track_corners"]
 #: straddling that deformation biased the tracks (measured on the demo scenes: the relative
 #: rotation's error 0.04-0.14 deg with 21 px, 0.02-0.04 deg with 7 px; the road's tilt 0.07 deg
 #: median, 0.40 deg 90th percentile, with 21 px; 0.016 and 0.038 deg with 7 px).
-_LK = {"winSize": (7, 7), "maxLevel": 4,
-       "criteria": (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.01)}
+_LK = {"winSize": (7, 7), "maxLevel": 4}
 _LK_GUESSED = {**_LK, "maxLevel": 1}
 
 
@@ -59,9 +58,9 @@ def track_corners(gray0: NDArray[np.uint8], gray1: NDArray[np.uint8], *,
                                         minDistance=min_distance, mask=m)
     if found is None or len(found) < 8:
         return np.empty((0, 2)), np.empty((0, 2))
+    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, iterations, 0.01)
     if predict is None:
-        lk = _LK if iterations == 20 else {
-            **_LK, "criteria": (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, iterations, 0.01)}
+        lk = {**_LK, "criteria": criteria}
         fwd, ok1, _ = cv2.calcOpticalFlowPyrLK(gray0, gray1, found, None, **lk)
         back, ok2, _ = cv2.calcOpticalFlowPyrLK(gray1, gray0, fwd, None, **lk)
     else:
@@ -70,9 +69,7 @@ def track_corners(gray0: NDArray[np.uint8], gray1: NDArray[np.uint8], *,
         guess = np.ascontiguousarray(guess.reshape(-1, 1, 2), dtype=np.float32)
         # From a guess only fine levels: a coarse level would lead a patch that the perspective
         # deforms (the road near the camera) away from it.
-        guessed = _LK_GUESSED if iterations == 20 else {
-            **_LK_GUESSED,
-            "criteria": (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, iterations, 0.01)}
+        guessed = {**_LK_GUESSED, "criteria": criteria}
         fwd, ok1, _ = cv2.calcOpticalFlowPyrLK(gray0, gray1, found, guess,
                                                flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **guessed)
         # Back with the predicted displacement reversed (not from the corners themselves).
