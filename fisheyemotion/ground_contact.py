@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import warnings
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -142,9 +143,10 @@ def standing_regions(moving: NDArray[np.bool_], antiparallel_share: NDArray[np.f
     -------
     ndarray of bool, shape (rows, cols)
     """
-    from skimage.measure import label  # scikit-image/scipy on first use: `import fisheyemotion` stays light
-    labels = label(moving, connectivity=2)
-    n = int(labels.max())
+    # OpenCV's labelling (8-connected), as segment.py: no scipy import on a first detection.
+    n, labels = cv2.connectedComponents(moving.astype(np.uint8), connectivity=8,
+                                        ltype=cv2.CV_32S)
+    n -= 1
     if n == 0:
         return np.zeros_like(moving)
     flat = labels.ravel()

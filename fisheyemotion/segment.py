@@ -1,10 +1,12 @@
-"""Threshold + connected components on the grid of cell likelihoods (scikit-image labelling;
-region properties for all labels at once with numpy and ``scipy.ndimage``)."""
+"""Threshold + connected components on the grid of cell likelihoods (OpenCV's labelling, 8-connected;
+region properties for all labels at once with numpy; scikit-image's hysteresis threshold when a
+seed threshold is set)."""
 
 from __future__ import annotations
 
 from typing import NamedTuple
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -48,20 +50,22 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
     mask : ndarray of bool, shape (rows, cols)
     regions : list of Region, largest first
     """
-    from scipy import ndimage  # scikit-image/scipy on first use: `import fisheyemotion` stays light
-    from skimage.filters import apply_hysteresis_threshold
-    from skimage.measure import label
     values = np.nan_to_num(cell_likelihood, nan=0.0)
     if seed_threshold > threshold:  # hysteresis: regions need a cell above the seed threshold
+        from skimage.filters import apply_hysteresis_threshold  # scikit-image on first use
         moving = apply_hysteresis_threshold(values, threshold, seed_threshold)
     else:
         moving = values > threshold
-    labels, n = label(moving, connectivity=2, return_num=True)
+    # OpenCV's labelling gives each region's bounding box and size in the same pass, and keeps
+    # scipy (0.17 s to import, through scikit-image's label) off a process's first detection.
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(moving.astype(np.uint8),
+                                                           connectivity=8, ltype=cv2.CV_32S)
+    n -= 1  # label 0 is the background
     if n == 0:
         return np.zeros_like(moving), []
     # Region properties for all labels at once (regionprops' per-region objects cost ~80 us each).
     flat = labels.ravel()
-    cells = np.bincount(flat, minlength=n + 1)[1:]
+    cells = stats[1:, cv2.CC_STAT_AREA].astype(np.int64)
     rows, cols = np.indices(labels.shape)
     mean = np.bincount(flat, weights=values.ravel(), minlength=n + 1)[1:] / cells
     cy = np.bincount(flat, weights=rows.ravel(), minlength=n + 1)[1:] / cells
@@ -72,13 +76,11 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
         np.maximum.at(oldest, flat, np.asarray(age, dtype=np.int64).ravel())
         kept &= oldest[1:] >= persistence
     regions = []
-    for i, box in enumerate(ndimage.find_objects(labels)):
-        if not kept[i]:
-            continue
-        r0, r1, c0, c1 = box[0].start, box[0].stop, box[1].start, box[1].stop
+    for i in np.flatnonzero(kept):
+        c0, r0, w, h = (int(v) for v in stats[i + 1, :4])
         regions.append(Region(
             label=0,
-            bbox=(c0 * grid, r0 * grid, (c1 - c0) * grid, (r1 - r0) * grid),
+            bbox=(c0 * grid, r0 * grid, w * grid, h * grid),
             area=int(cells[i]) * grid * grid,
             mean_likelihood=float(mean[i]),
             centroid=(float(cx[i]) * grid + (grid - 1) / 2, float(cy[i]) * grid + (grid - 1) / 2),
