@@ -25,13 +25,14 @@ def _first_landed(landed, r, c, dr, dc, reach):
 
 
 @numba.njit(cache=True, nogil=True)
-def transfer(col, row, rank, fill_rank, reach):
+def transfer(col, row, rank, fill_rank, reach, landed, out):
     """``col``, ``row`` (rows, cols): the cell each cell lands in (NaN or outside: nowhere);
     ``rank``, ``fill_rank`` (rows * cols,): the landing priority (largest wins, ties to the later
-    cell) and the gap-filling priority (smallest wins). Returns the flat source index per cell,
-    -1 where none (see ``grid_transfer``)."""
+    cell) and the gap-filling priority (smallest wins). Fills ``out`` (rows, cols) with the flat
+    source index per cell, -1 where none (see ``grid_transfer``); ``landed`` (rows, cols) is
+    scratch, -1 on entry. (Arrays are allocated by the caller: numba's ``np.full`` and ``copy``
+    took a third of this kernel's first compilation.)"""
     rows, cols = col.shape
-    landed = np.full((rows, cols), -1, np.intp)
     for r in range(rows):
         for c in range(cols):
             tc, tr = col[r, c], row[r, c]
@@ -42,9 +43,9 @@ def transfer(col, row, rank, fill_rank, reach):
             j = landed[dr, dc]
             if j < 0 or rank[i] >= rank[j]:
                 landed[dr, dc] = i
-    out = landed.copy()
     for r in range(rows):
         for c in range(cols):
+            out[r, c] = landed[r, c]
             if landed[r, c] >= 0:
                 continue
             best, best_rank = -1, np.inf
@@ -60,15 +61,14 @@ def transfer(col, row, rank, fill_rank, reach):
                     if fill_rank[cand] < best_rank or best < 0:
                         best, best_rank = cand, fill_rank[cand]
             out[r, c] = best
-    return out
 
 
 @numba.njit(cache=True, nogil=True)
-def cell_variance(flow, grid, mean):
+def cell_variance(flow, grid, mean, out):
     """Mean squared deviation of each ``grid x grid`` cell's flow vectors from the cell's mean
-    ``mean`` (rows, cols, 2), summed over u and v; ``flow`` (H, W, 2)."""
+    ``mean`` (rows, cols, 2), summed over u and v, into ``out`` (rows, cols); ``flow`` (H, W,
+    2)."""
     rows, cols = mean.shape[0], mean.shape[1]
-    out = np.empty((rows, cols))
     inv = 1.0 / (grid * grid)
     for r in range(rows):
         for c in range(cols):
@@ -80,4 +80,3 @@ def cell_variance(flow, grid, mean):
                     dv = flow[y, x, 1] - mv
                     acc += du * du + dv * dv
             out[r, c] = acc * inv
-    return out

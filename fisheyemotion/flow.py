@@ -136,8 +136,10 @@ def grid_transfer(cell_flow: NDArray, order: NDArray, grid: int, *,
         row = np.floor(target[..., 1] / grid)
     rank = np.nan_to_num(order, nan=-np.inf).ravel().astype(np.float64)
     fill_rank = np.nan_to_num(order, nan=np.inf).ravel().astype(np.float64)  # gaps prefer a valid source
-    return transfer(np.ascontiguousarray(col, np.float64), np.ascontiguousarray(row, np.float64),
-                    rank, fill_rank, int(reach))
+    out = np.empty((rows, cols), np.intp)
+    transfer(np.ascontiguousarray(col, np.float64), np.ascontiguousarray(row, np.float64),
+             rank, fill_rank, int(reach), np.full((rows, cols), -1, np.intp), out)
+    return out
 
 
 def grid_gather(cells: NDArray, source: NDArray[np.intp], fill=np.nan) -> NDArray:

@@ -73,5 +73,6 @@ def cell_sigma(flow: NDArray[np.float32], grid: int, angle: NDArray[np.float64],
 
     mean = grid_average(flow, grid) if mean is None else mean
     # Deviations from the cell mean (E[f^2] - E[f]^2 would cancel at 100-px flows).
-    var = cell_variance(np.ascontiguousarray(flow), int(grid), np.ascontiguousarray(mean))
+    var = np.empty(mean.shape[:2])
+    cell_variance(np.ascontiguousarray(flow), int(grid), np.ascontiguousarray(mean), var)
     return np.sqrt(floor * floor + var) * angle
