@@ -80,3 +80,49 @@ def cell_variance(flow, grid, mean, out):
                     dv = flow[y, x, 1] - mv
                     acc += du * du + dv * dv
             out[r, c] = acc * inv
+
+
+@numba.njit(cache=True, nogil=True)
+def sample_medians(cell, rng, start, pos, buf, med, out):
+    """The median ``rng`` of the points in each sample, holes filled from their neighbours.
+
+    ``cell`` (N,): each point's flat sample index, -1 where outside; ``rng`` (N,): its value;
+    ``out`` (rows, cols): per sample the upper median of its points' values (``rng[count // 2]``
+    of the sorted values); a sample with no point but a neighbour (of the eight) that has one,
+    the smallest neighbouring median; NaN where neither. Scratch, allocated by the caller:
+    ``start`` (rows * cols + 1,) zeros, ``pos`` (rows * cols,), ``buf`` (N,), ``med`` (rows *
+    cols,)."""
+    rows, cols = out.shape
+    n = rows * cols
+    for i in range(cell.shape[0]):
+        if cell[i] >= 0:
+            start[cell[i] + 1] += 1
+    for k in range(n):
+        start[k + 1] += start[k]
+        pos[k] = start[k]
+    for i in range(cell.shape[0]):
+        k = cell[i]
+        if k >= 0:
+            buf[pos[k]] = rng[i]
+            pos[k] += 1
+    for k in range(n):
+        lo, hi = start[k], start[k + 1]
+        if lo == hi:
+            med[k] = np.inf
+            continue
+        for j in range(lo + 1, hi):  # insertion sort: a handful of points per sample
+            v = buf[j]
+            m = j - 1
+            while m >= lo and buf[m] > v:
+                buf[m + 1] = buf[m]
+                m -= 1
+            buf[m + 1] = v
+        med[k] = buf[lo + (hi - lo) // 2]
+    for r in range(rows):
+        for c in range(cols):
+            v = med[r * cols + c]
+            if not v < np.inf:
+                for rr in range(max(r - 1, 0), min(r + 2, rows)):
+                    for cc in range(max(c - 1, 0), min(c + 2, cols)):
+                        v = min(v, med[rr * cols + cc])
+            out[r, c] = v if v < np.inf else np.nan

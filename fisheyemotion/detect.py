@@ -214,6 +214,7 @@ class MotionDetector:
         self.last_pose: NDArray[np.float64] | None = None
         self._pixel_angle: NDArray[np.float64] | None = None
         self._view: NDArray[np.bool_] | None = None
+        self._cell_samples: NDArray[np.intp] | None = None
         self._temporal: tuple[NDArray, NDArray] | None = None
         self._history: deque[tuple[NDArray[np.uint8], NDArray[np.float64]]] = deque(
             maxlen=self.params.frame_gap)
@@ -555,9 +556,11 @@ class MotionDetector:
         step = self._prior.step
         w, h = self.size
         coarse = self.scene.ranges(pose0, step, (-(-h // step), -(-w // step)))
-        c = (self._centres[..., 0] // step).astype(np.intp)
-        r = (self._centres[..., 1] // step).astype(np.intp)
-        return coarse[r, c]
+        if self._cell_samples is None:  # each cell's sample: fixed by the camera and the grid
+            c = (self._centres[..., 0] // step).astype(np.intp)
+            r = (self._centres[..., 1] // step).astype(np.intp)
+            self._cell_samples = r * coarse.shape[1] + c
+        return coarse.ravel()[self._cell_samples]
 
     def _carry(self, cells: NDArray, cell_flow: NDArray) -> NDArray:
         """A previous detection's cell map carried to the current one: consecutive detections

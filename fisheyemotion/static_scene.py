@@ -177,31 +177,22 @@ class StaticScene:
         return out
 
     def _ranges(self, pose: NDArray, step: int, rows: int, cols: int) -> NDArray[np.float64]:
-        out = np.full(rows * cols, np.inf)
-        if len(self):
-            points = np.concatenate(list(self._sets))
-            local = (points - pose[:3, 3]) @ pose[:3, :3]
-            pix, ok = self.camera.project(local)
-            rng = np.linalg.norm(local, axis=-1)[ok]
-            c = np.floor(pix[ok, 0] / step).astype(np.intp)
-            r = np.floor(pix[ok, 1] / step).astype(np.intp)
-            inside = (c >= 0) & (c < cols) & (r >= 0) & (r < rows)
-            cell, rng = r[inside] * cols + c[inside], rng[inside]
-            if len(cell):
-                # Median range per sample: sort by (sample, range) -- one float key, the range
-                # as the fraction -- and take each run's middle.
-                order = np.argsort(cell + rng / (2.0 * rng.max()), kind="stable")
-                cell, rng = cell[order], rng[order]
-                starts = np.flatnonzero(np.r_[True, cell[1:] != cell[:-1]])
-                counts = np.diff(np.r_[starts, len(cell)])
-                out[cell[starts]] = rng[starts + counts // 2]
-        out = out.reshape(rows, cols)
-        known = np.isfinite(out)
-        if known.any() and not known.all():
-            # Fill one-sample holes from the nearest neighbour (the z-buffer leaves gaps where the
-            # points of a 5-px grid fall unevenly on the prior's samples).
-            from scipy import ndimage  # scikit-image/scipy on first use: `import fisheyemotion` stays light
-            near = ndimage.grey_erosion(out, size=(3, 3), mode="nearest")
-            out = np.where(known, out, near)
-        out[~np.isfinite(out)] = np.nan
+        from ._grid_kernels import sample_medians  # numba on first use: a light import
+
+        out = np.empty((rows, cols))
+        if not len(self):
+            out[:] = np.nan
+            return out
+        points = np.concatenate(list(self._sets))
+        local = (points - pose[:3, 3]) @ pose[:3, :3]
+        pix, ok = self.camera.project(local)
+        with np.errstate(invalid="ignore"):
+            c = np.floor(pix[:, 0] / step)
+            r = np.floor(pix[:, 1] / step)
+            inside = ok & (c >= 0) & (c < cols) & (r >= 0) & (r < rows)
+        cell = np.where(inside, r * cols + c, -1).astype(np.intp)
+        rng = np.linalg.norm(local, axis=-1)
+        n = rows * cols
+        sample_medians(cell, rng, np.zeros(n + 1, np.intp), np.empty(n, np.intp),
+                       np.empty(len(rng)), np.empty(n), out)
         return out

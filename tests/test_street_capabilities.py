@@ -86,6 +86,36 @@ def test_scene_ranges_return_the_stored_points_along_other_rays():
     assert len(scene) == 0 and np.isnan(scene.ranges(pose1, 8, (30, 40))).all()
 
 
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), rows=st.integers(1, 9), cols=st.integers(1, 9),
+       points=st.integers(0, 120))
+def test_sample_medians_match_a_per_sample_median(seed, rows, cols, points):
+    """The scene model's kernel against numpy sample by sample: the upper median of each
+    sample's values, empty samples the smallest median among their eight neighbours, NaN
+    where none (including points outside, cell -1)."""
+    from fisheyemotion._grid_kernels import sample_medians
+
+    rng = np.random.default_rng(seed)
+    n = rows * cols
+    cell = rng.integers(-1, n, points)
+    values = np.round(rng.uniform(1, 50, points), 1)  # ties too
+    out = np.empty((rows, cols))
+    sample_medians(cell, values, np.zeros(n + 1, np.intp), np.empty(n, np.intp),
+                   np.empty(points), np.empty(n), out)
+    med = np.full((rows, cols), np.inf)
+    for k in range(n):
+        v = np.sort(values[cell == k])
+        if len(v):
+            med.flat[k] = v[len(v) // 2]
+    want = med.copy()
+    for r in range(rows):
+        for c in range(cols):
+            if not np.isfinite(med[r, c]):
+                want[r, c] = med[max(r - 1, 0):r + 2, max(c - 1, 0):c + 2].min()
+    want[~np.isfinite(want)] = np.nan
+    np.testing.assert_array_equal(out, want)
+
+
 def test_scene_prior_predicts_the_flow_of_structure_beside_the_road():
     r = synth.Renderer(CAM, WALL, supersample=1)
     f = [r.render(k) for k in range(4)]
