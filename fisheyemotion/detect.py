@@ -449,9 +449,8 @@ class MotionDetector:
         if (keep_scene or contact) and not res.static_camera:
             # One triangulation for both: every range counts for the contact test, however
             # little parallax it has; the scene model keeps only well-conditioned ones.
-            ranges, _ = triangulate_range(self._rays0, rays1, t0, t1, far=p.prior_distance)
-            parallax = np.linalg.norm(np.cross(self._rays0 @ t0[:3, :3].T,
-                                               rays1 @ t1[:3, :3].T), axis=-1)
+            ranges, _, parallax = triangulate_range(self._rays0, rays1, t0, t1,
+                                                    far=p.prior_distance, with_parallax=True)
             if contact:
                 with np.errstate(invalid="ignore", divide="ignore"):
                     range_error = sigma / parallax  # relative: d(lambda)/lambda
@@ -562,15 +561,16 @@ class MotionDetector:
             self._cell_samples = r * coarse.shape[1] + c
         return coarse.ravel()[self._cell_samples]
 
-    def _carry(self, cells: NDArray, cell_flow: NDArray) -> NDArray:
-        """A previous detection's cell map carried to the current one: consecutive detections
-        are one frame apart, so regions moved by about ``flow / frame_gap``."""
+    def _carry(self, cell_flow: NDArray) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+        """Where a previous detection's cell map is read to carry it to the current one (rows,
+        columns): consecutive detections are one frame apart, so regions moved by about
+        ``flow / frame_gap``."""
         g = self.params.grid
-        rows, cols = cells.shape
+        rows, cols = cell_flow.shape[:2]
         back = self._centres - cell_flow / self.params.frame_gap
-        c = np.clip(np.rint((back[..., 0] - (g - 1) / 2) / g), 0, cols - 1).astype(int)
-        r = np.clip(np.rint((back[..., 1] - (g - 1) / 2) / g), 0, rows - 1).astype(int)
-        return cells[r, c]
+        c = np.clip(np.rint((back[..., 0] - (g - 1) / 2) / g), 0, cols - 1).astype(np.intp)
+        r = np.clip(np.rint((back[..., 1] - (g - 1) / 2) / g), 0, rows - 1).astype(np.intp)
+        return r, c
 
     def _temporal_filter(self, cell_likelihood, cell_flow):
         """Accumulated likelihood and the age (consecutive moving detections) of every cell."""
@@ -580,8 +580,9 @@ class MotionDetector:
             acc, age_before = now, np.zeros(now.shape, np.int64)
         else:
             acc_before, age_before = self._temporal
-            acc = (1 - p.temporal_decay) * now + p.temporal_decay * self._carry(acc_before, cell_flow)
-            age_before = self._carry(age_before, cell_flow)
+            at = self._carry(cell_flow)
+            acc = (1 - p.temporal_decay) * now + p.temporal_decay * acc_before[at]
+            age_before = age_before[at]
         age = np.where(acc > p.threshold, age_before + 1, 0)
         self._temporal = (acc, age)
         return np.where(np.isnan(cell_likelihood), np.nan, acc), age

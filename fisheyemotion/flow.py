@@ -129,11 +129,10 @@ def grid_transfer(cell_flow: NDArray, order: NDArray, grid: int, *,
     from ._grid_kernels import transfer  # numba on first use: a light import
 
     rows, cols = order.shape
-    centres = grid_centres(cols * grid, rows * grid, grid)
-    target = centres + cell_flow
+    offset = (grid - 1) / 2  # the cell centres, broadcast (grid_centres without its meshgrid)
     with np.errstate(invalid="ignore"):
-        col = np.floor(target[..., 0] / grid)
-        row = np.floor(target[..., 1] / grid)
+        col = np.floor(((np.arange(cols) * grid + offset) + cell_flow[..., 0]) / grid)
+        row = np.floor(((np.arange(rows) * grid + offset)[:, None] + cell_flow[..., 1]) / grid)
     rank = np.nan_to_num(order, nan=-np.inf).ravel().astype(np.float64)
     fill_rank = np.nan_to_num(order, nan=np.inf).ravel().astype(np.float64)  # gaps prefer a valid source
     out = np.empty((rows, cols), np.intp)

@@ -53,8 +53,8 @@ TRIANGULATION_PARALLAX = float(np.radians(0.5))
 
 
 def triangulate_range(rays0: NDArray[np.float64], rays1: NDArray[np.float64], pose0: NDArray,
-                      pose1: NDArray, *, far: float, min_parallax: float = 0.0
-                      ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+                      pose1: NDArray, *, far: float, min_parallax: float = 0.0,
+                      with_parallax: bool = False) -> tuple[NDArray, ...]:
     """Range along ``rays0`` of the point seen along ``rays0`` from ``pose0`` and ``rays1`` from
     ``pose1`` (midpoint method).
 
@@ -68,6 +68,9 @@ def triangulate_range(rays0: NDArray[np.float64], rays1: NDArray[np.float64], po
         Ranges beyond this (and parallel rays) are clipped to it.
     min_parallax : float
         Radians; rays closer in angle than this are not valid.
+    with_parallax : bool
+        Also return the sine of the rays' angle, ``sqrt(1 - (p . p')^2)`` (``|p x p'|``), which
+        the triangulation computes anyway.
 
     Returns
     -------
@@ -76,6 +79,8 @@ def triangulate_range(rays0: NDArray[np.float64], rays1: NDArray[np.float64], po
     valid : ndarray of bool, shape (...)
         Finite rays at least ``min_parallax`` apart triangulating in front of the first camera
         (or parallel, when ``min_parallax`` is 0: ``far``).
+    parallax : ndarray, shape (...)
+        With ``with_parallax``: the sine of the angle between the rays (NaN where not finite).
     """
     p = rays0 @ pose0[:3, :3].T
     q = rays1 @ pose1[:3, :3].T
@@ -87,6 +92,8 @@ def triangulate_range(rays0: NDArray[np.float64], rays1: NDArray[np.float64], po
         lam = np.where(den > _DEGENERATE, (dp - a * dq) / den, np.inf)
         valid = np.isfinite(a) & (lam > 0) & (den >= np.sin(min_parallax) ** 2)
         lam = np.where(valid, np.minimum(lam, far), np.nan)
+    if with_parallax:
+        return lam, valid, np.sqrt(np.maximum(den, 0.0))
     return lam, valid
 
 

@@ -42,6 +42,11 @@ def test_triangulated_range_is_the_distance_to_the_point(seed):
     truth = np.linalg.norm(points - pose0[:3, 3], axis=-1)
     assert ok.mean() > 0.9
     np.testing.assert_allclose(lam[ok], truth[ok], rtol=1e-8)
+    # The parallax it returns is the sine of the rays' angle, |p x p'| in the world frame.
+    r0, r1 = rays_of(points, pose0), rays_of(points, pose1)
+    _, _, parallax = triangulate_range(r0, r1, pose0, pose1, far=1e4, with_parallax=True)
+    cross = np.linalg.norm(np.cross(r0 @ pose0[:3, :3].T, r1 @ pose1[:3, :3].T), axis=-1)
+    np.testing.assert_allclose(parallax, cross, rtol=1e-7, atol=1e-12)
 
 
 def test_triangulation_rejects_points_behind_and_without_parallax():
