@@ -24,7 +24,6 @@ percentile of its columns' ratios).
 
 from __future__ import annotations
 
-
 import cv2
 import numpy as np
 from numpy.typing import NDArray
