@@ -84,21 +84,24 @@ class Grid(NamedTuple):
 
 
 class LazyMaps(Mapping):
-    """Per-constraint full-resolution maps, upsampled from the grid on first access."""
+    """Per-constraint full-resolution maps, made (``make(name)``) on first access: most callers
+    never look at them."""
 
-    def __init__(self, cells: dict[str, NDArray], to_image) -> None:
-        self._cells, self._to_image, self._done = cells, to_image, {}
+    def __init__(self, names: tuple[str, ...], make) -> None:
+        self._names, self._make, self._done = names, make, {}
 
     def __getitem__(self, name: str) -> NDArray[np.float32]:
+        if name not in self._names:
+            raise KeyError(name)
         if name not in self._done:
-            self._done[name] = self._to_image(self._cells[name])
+            self._done[name] = self._make(name)
         return self._done[name]
 
     def __iter__(self):
-        return iter(self._cells)
+        return iter(self._names)
 
     def __len__(self) -> int:
-        return len(self._cells)
+        return len(self._names)
 
 
 @dataclass(frozen=True, eq=False)
@@ -201,6 +204,7 @@ class MotionDetector:
         # A cell is used only if all of its pixels have rays.
         self._cell_valid = valid0 & (grid_average(pixel_valid.astype(np.float32), g) > 1 - 1e-6)
         self._pixel_valid = pixel_valid
+        self._pixels_outside = np.flatnonzero(~pixel_valid)  # flat: set to 0 in every result
         self._flow = FlowEstimator(self.params)
         self._prior = (EgoFlowPrior(camera, distance=self.params.prior_distance)
                        if self.params.flow_prior != "none" else None)
@@ -601,14 +605,14 @@ class MotionDetector:
 
         def to_image(cells: NDArray[np.float64]) -> NDArray[np.float32]:
             full = grid_upsample(np.where(valid_now, cells, 0.0).astype(np.float32), p.grid, w, h)
-            full[~self._pixel_valid] = 0
+            np.put(full, self._pixels_outside, 0)
             return full
 
         def now(cells: NDArray[np.float64]) -> NDArray[np.float64]:
             return grid_gather(cells, source)
 
         cell_likelihood = now(measured)
-        maps = LazyMaps({name: now(getattr(res, name)) for name in CONSTRAINT_NAMES}, to_image)
+        maps = LazyMaps(CONSTRAINT_NAMES, lambda name: to_image(now(getattr(res, name))))
         age = None
         if stream and (p.temporal_decay > 0 or p.persistence > 1):
             moved = np.nan_to_num(grid_gather(carrier, source), nan=0.0)
@@ -619,7 +623,7 @@ class MotionDetector:
                                            persistence=p.persistence,
                                            seed_threshold=p.seed_threshold)
         mask = grid_upsample(cell_mask.astype(np.uint8) * 255, p.grid, w, h)
-        mask[~self._pixel_valid] = 0
+        np.put(mask, self._pixels_outside, 0)
         if not self._road_warned and self.road.known and self.ground is None \
                 and cell_mask[self._cell_valid].mean() > FLOODED:
             self._road_warned = True
