@@ -13,6 +13,11 @@ _LINES = ((0, -1, 0, 1), (-1, 0, 1, 0), (-1, -1, 1, 1), (-1, 1, 1, -1))
 
 
 @numba.njit(cache=True, nogil=True)
+def _rank(value, nan_rank):
+    return nan_rank if value != value else value
+
+
+@numba.njit(cache=True, nogil=True)
 def _first_landed(landed, r, c, dr, dc, reach):
     rows, cols = landed.shape
     for d in range(1, reach + 1):
@@ -25,13 +30,13 @@ def _first_landed(landed, r, c, dr, dc, reach):
 
 
 @numba.njit(cache=True, nogil=True)
-def transfer(col, row, rank, fill_rank, reach, landed, out):
+def transfer(col, row, order, reach, landed, out):
     """``col``, ``row`` (rows, cols): the cell each cell lands in (NaN or outside: nowhere);
-    ``rank``, ``fill_rank`` (rows * cols,): the landing priority (largest wins, ties to the later
-    cell) and the gap-filling priority (smallest wins). Fills ``out`` (rows, cols) with the flat
-    source index per cell, -1 where none (see ``grid_transfer``); ``landed`` (rows, cols) is
-    scratch, -1 on entry. (Arrays are allocated by the caller: numba's ``np.full`` and ``copy``
-    took a third of this kernel's first compilation.)"""
+    ``order`` (rows * cols,): the landing priority (largest wins, ties to the later cell; NaN
+    lowest) and the gap-filling priority (smallest wins; NaN last). Fills ``out`` (rows, cols)
+    with the flat source index per cell, -1 where none (see ``grid_transfer``); ``landed``
+    (rows, cols) is scratch, -1 on entry. (Arrays are allocated by the caller: numba's
+    ``np.full`` and ``copy`` took a third of this kernel's first compilation.)"""
     rows, cols = col.shape
     for r in range(rows):
         for c in range(cols):
@@ -41,7 +46,7 @@ def transfer(col, row, rank, fill_rank, reach, landed, out):
             i = r * cols + c
             dr, dc = int(tr), int(tc)
             j = landed[dr, dc]
-            if j < 0 or rank[i] >= rank[j]:
+            if j < 0 or _rank(order[i], -np.inf) >= _rank(order[j], -np.inf):
                 landed[dr, dc] = i
     for r in range(rows):
         for c in range(cols):
@@ -58,8 +63,9 @@ def transfer(col, row, rank, fill_rank, reach, landed, out):
                 if pb < 0:
                     continue
                 for cand in (pa, pb):
-                    if fill_rank[cand] < best_rank or best < 0:
-                        best, best_rank = cand, fill_rank[cand]
+                    rank = _rank(order[cand], np.inf)
+                    if rank < best_rank or best < 0:
+                        best, best_rank = cand, rank
             out[r, c] = best
 
 

@@ -133,11 +133,10 @@ def grid_transfer(cell_flow: NDArray, order: NDArray, grid: int, *,
     with np.errstate(invalid="ignore"):
         col = np.floor(((np.arange(cols) * grid + offset) + cell_flow[..., 0]) / grid)
         row = np.floor(((np.arange(rows) * grid + offset)[:, None] + cell_flow[..., 1]) / grid)
-    rank = np.nan_to_num(order, nan=-np.inf).ravel().astype(np.float64)
-    fill_rank = np.nan_to_num(order, nan=np.inf).ravel().astype(np.float64)  # gaps prefer a valid source
     out = np.empty((rows, cols), np.intp)
     transfer(np.ascontiguousarray(col, np.float64), np.ascontiguousarray(row, np.float64),
-             rank, fill_rank, int(reach), np.full((rows, cols), -1, np.intp), out)
+             np.ascontiguousarray(order, np.float64).ravel(), int(reach),
+             np.full((rows, cols), -1, np.intp), out)
     return out
 
 
