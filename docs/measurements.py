@@ -7,8 +7,9 @@ sequences.
 Prints: the flow error on static structure with and without the static-scene model, the share
 of cells above 3 sigma in the height term per surface, how fast and how well the road is
 estimated in the first camera's frame, what the false regions of the default pipeline are, how
-far the prior and the flow are off there, and how far the scene model's ranges are off on the
-tuning street's brick wall.
+far the prior and the flow are off there, how far the scene model's ranges are off on the
+tuning street's brick wall, and what the ground-contact test's scene-agreement veto costs and
+buys with the exact flow.
 """
 
 from __future__ import annotations
@@ -148,8 +149,9 @@ def false_regions(names=("street_kb", "street_ds", "crossing", "highway", "overt
 
 def prior_error_at_false_regions(names=("street_kb", "street_heldout_ds")) -> None:
     """Median error (pixels, against the renderer's exact flow) of the ego prior the flow was
-    warped by and of the measured flow, at the cells of false regions led by the epipolar term
-    and at the static cells the detector left unflagged (``Params()``, Farneback, streamed)."""
+    warped by and of the measured flow, at the cells of false regions led by the epipolar and by
+    the anti-parallel term and at the static cells the detector left unflagged (``Params()``,
+    Farneback, streamed)."""
     from skimage.measure import label
 
     from fisheyemotion.constraints import constraints
@@ -159,7 +161,8 @@ def prior_error_at_false_regions(names=("street_kb", "street_heldout_ds")) -> No
     p = fm.Params()
     g, gap = p.grid, p.frame_gap
     weights = dict(zip(CONSTRAINT_NAMES, p.weights, strict=True))
-    quiet, false = {"prior": [], "flow": []}, {"prior": [], "flow": []}
+    quiet = {"prior": [], "flow": []}
+    false = {lead: {"prior": [], "flow": []} for lead in ("epipolar", "antiparallel")}
     for name in names:
         seq = Sequence(SEQUENCES / name)
         det = fm.MotionDetector(seq.camera, params=p, roi=seq.roi())
@@ -191,14 +194,17 @@ def prior_error_at_false_regions(names=("street_kb", "street_heldout_ds")) -> No
                 if region.sum() * g * g < p.min_area or truth[region].any():
                     continue
                 lead = max(weights, key=lambda t: np.nanmean(weights[t] * getattr(res, t)[region]))
-                if lead == "epipolar" and (region & ok).any():
+                if lead in false and (region & ok).any():
                     for key in errors:
-                        false[key].append(np.median(errors[key][region & ok]))
-    med = {k: (np.median(np.concatenate(quiet[k])), np.median(false[k])) for k in quiet}
+                        false[lead][key].append(np.median(errors[key][region & ok]))
+    med = {k: np.median(np.concatenate(quiet[k])) for k in quiet}
     print(f"prior / flow error against the exact flow ({', '.join(names)}): static cells not "
-          f"flagged {med['prior'][0]:.2f} / {med['flow'][0]:.2f} px (median over cells); false "
-          f"regions led by the epipolar term {med['prior'][1]:.1f} / {med['flow'][1]:.1f} px "
-          f"(median over {len(false['flow'])} regions of each region's median)")
+          f"flagged {med['prior']:.2f} / {med['flow']:.2f} px (median over cells)")
+    for lead, e in false.items():
+        flow = np.array(e["flow"])
+        print(f"  false regions led by the {lead} term: {np.median(e['prior']):.1f} / "
+              f"{np.median(flow):.1f} px (median over {len(flow)} regions of each region's "
+              f"median; flow within 0.5 px in {100 * np.mean(flow < 0.5):.0f} % of them)")
 
 
 def wall_ranges(name: str = "street_kb", frame: int = 30) -> None:
@@ -250,6 +256,32 @@ def pose_steps(names=("crossing", "highway", "street_kb", "street_ds", "curve", 
           f"consecutive frames median {np.median(rotations):.3f} deg")
 
 
+def scene_agreement_tradeoff() -> None:
+    """The ground-contact test's scene-agreement veto, on and off, with the renderer's exact
+    flow over all the demo sequences (``Params()``): false-positive frames and crossing detection
+    per scene group."""
+    import importlib
+
+    from fisheyemotion.eval.evaluate import evaluate, sequence_paths
+    from fisheyemotion.eval.report import groups_table
+
+    detect_module = importlib.import_module("fisheyemotion.detect")  # the module, not detect()
+    rows = {}
+    saved = detect_module.SCENE_AGREEMENT
+    try:
+        for name, tolerance in (("agreement on", saved), ("agreement off", np.inf)):
+            detect_module.SCENE_AGREEMENT = tolerance  # inf: no range ever disagrees
+            result = evaluate(sequence_paths([SEQUENCES]), fm.Params(), workers=1,
+                              progress=False, ablation=False, exact_flow=True)
+            rows[name] = groups_table(result).set_index("scenes")
+    finally:
+        detect_module.SCENE_AGREEMENT = saved
+    for name, table in rows.items():
+        cells = ", ".join(f"{scenes} {100 * r['FP frames']:.0f} % / {100 * r['crossing det.']:.0f} %"
+                          for scenes, r in table.iterrows())
+        print(f"exact flow, {name}: false-positive frames / crossing detected: {cells}")
+
+
 if __name__ == "__main__":
     if not SEQUENCES.is_dir():
         sys.exit(f"{SEQUENCES}: run 'make demo' first")
@@ -261,3 +293,4 @@ if __name__ == "__main__":
     prior_error_at_false_regions()
     wall_ranges()
     pose_steps()
+    scene_agreement_tradeoff()
