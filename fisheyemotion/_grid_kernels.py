@@ -132,3 +132,44 @@ def sample_medians(cell, rng, start, pos, buf, med, out):
                     for cc in range(max(c - 1, 0), min(c + 2, cols)):
                         v = min(v, med[rr * cols + cc])
             out[r, c] = v if v < np.inf else np.nan
+
+
+_F32_MAX = float(np.finfo(np.float32).max)
+
+
+@numba.njit(cache=True, nogil=True)
+def accumulate(source, likelihood, carrier, acc_before, age_before, decay, threshold, gap,
+               grid, acc, age):
+    """The temporal filter's step (``MotionDetector._temporal_filter``) in one pass.
+
+    For each cell ``(r, c)`` of the current detection: its carrier flow is the source cell's
+    (``carrier[source]``, 0 where none or NaN, as ``np.nan_to_num``); the previous detection's
+    cell it came from is the one nearest to ``centre - flow / gap`` (clipped to the grid); then
+    ``acc = (1 - decay) * likelihood + decay * acc_before[there]`` (``likelihood`` NaN counts 0)
+    and ``age = age_before[there] + 1`` where ``acc > threshold``, else 0. ``source`` (rows,
+    cols): flat source index or -1; ``carrier`` (rows, cols, 2) float32; ``acc`` (rows, cols)
+    and ``age`` (rows, cols) are filled. The arithmetic is numpy's, operation for operation
+    (float32 division of the flow by the gap), so the result is the same to the bit."""
+    rows, cols = source.shape
+    off = (grid - 1) / 2
+    g32 = np.float32(gap)
+    for r in range(rows):
+        for c in range(cols):
+            j = source[r, c]
+            mx = np.float32(0.0)
+            my = np.float32(0.0)
+            if j >= 0:
+                mx = carrier[j // cols, j % cols, 0]
+                my = carrier[j // cols, j % cols, 1]
+                mx = np.float32(0.0) if mx != mx else np.float32(min(max(mx, -_F32_MAX), _F32_MAX))
+                my = np.float32(0.0) if my != my else np.float32(min(max(my, -_F32_MAX), _F32_MAX))
+            bx = (c * grid + off) - mx / g32
+            by = (r * grid + off) - my / g32
+            cc = int(min(max(np.rint((bx - off) / grid), 0.0), cols - 1.0))
+            rr = int(min(max(np.rint((by - off) / grid), 0.0), rows - 1.0))
+            now = likelihood[r, c]
+            if now != now:
+                now = 0.0
+            a = (1 - decay) * now + decay * acc_before[rr, cc]
+            acc[r, c] = a
+            age[r, c] = age_before[rr, cc] + 1 if a > threshold else 0

@@ -565,29 +565,23 @@ class MotionDetector:
             self._cell_samples = r * coarse.shape[1] + c
         return coarse.ravel()[self._cell_samples]
 
-    def _carry(self, cell_flow: NDArray) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-        """Where a previous detection's cell map is read to carry it to the current one (rows,
-        columns): consecutive detections are one frame apart, so regions moved by about
-        ``flow / frame_gap``."""
-        g = self.params.grid
-        rows, cols = cell_flow.shape[:2]
-        back = self._centres - cell_flow / self.params.frame_gap
-        c = np.clip(np.rint((back[..., 0] - (g - 1) / 2) / g), 0, cols - 1).astype(np.intp)
-        r = np.clip(np.rint((back[..., 1] - (g - 1) / 2) / g), 0, rows - 1).astype(np.intp)
-        return r, c
+    def _temporal_filter(self, cell_likelihood, carrier, source):
+        """Accumulated likelihood and the age (consecutive moving detections) of every cell:
+        ``L = (1 - decay) L_now + decay L_before``, the previous detection's map read where each
+        cell came from (consecutive detections are one frame apart, so regions moved by about
+        ``flow / frame_gap``; ``carrier[source]`` is each cell's flow)."""
+        from ._grid_kernels import accumulate  # numba on first use: a light import
 
-    def _temporal_filter(self, cell_likelihood, cell_flow):
-        """Accumulated likelihood and the age (consecutive moving detections) of every cell."""
         p = self.params
-        now = np.nan_to_num(cell_likelihood, nan=0.0)
         if self._temporal is None:
-            acc, age_before = now, np.zeros(now.shape, np.int64)
+            acc = np.nan_to_num(cell_likelihood, nan=0.0)
+            age = np.where(acc > p.threshold, 1, 0)
         else:
             acc_before, age_before = self._temporal
-            at = self._carry(cell_flow)
-            acc = (1 - p.temporal_decay) * now + p.temporal_decay * acc_before[at]
-            age_before = age_before[at]
-        age = np.where(acc > p.threshold, age_before + 1, 0)
+            acc, age = np.empty(cell_likelihood.shape), np.empty(cell_likelihood.shape, np.int64)
+            accumulate(source, np.ascontiguousarray(cell_likelihood, np.float64), carrier,
+                       acc_before, age_before, float(p.temporal_decay), float(p.threshold),
+                       int(p.frame_gap), int(p.grid), acc, age)
         self._temporal = (acc, age)
         return np.where(np.isnan(cell_likelihood), np.nan, acc), age
 
@@ -615,8 +609,7 @@ class MotionDetector:
         maps = LazyMaps(CONSTRAINT_NAMES, lambda name: to_image(now(getattr(res, name))))
         age = None
         if stream and (p.temporal_decay > 0 or p.persistence > 1):
-            moved = np.nan_to_num(grid_gather(carrier, source), nan=0.0)
-            cell_likelihood, age = self._temporal_filter(cell_likelihood, moved)
+            cell_likelihood, age = self._temporal_filter(cell_likelihood, carrier, source)
         likelihood = to_image(np.nan_to_num(cell_likelihood, nan=0.0))
         cell_mask, regions = segment_cells(cell_likelihood, threshold=p.threshold, grid=p.grid,
                                            min_area=p.min_area, age=age,

@@ -121,6 +121,37 @@ def test_sample_medians_match_a_per_sample_median(seed, rows, cols, points):
     np.testing.assert_array_equal(out, want)
 
 
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), rows=st.integers(1, 12), cols=st.integers(1, 12),
+       grid=st.integers(1, 7), gap=st.integers(1, 4))
+def test_temporal_accumulation_matches_numpy_to_the_bit(seed, rows, cols, grid, gap):
+    """The temporal filter's kernel against the same step written with numpy arrays: each cell
+    reads the previous map where its (source's) flow says it came from."""
+    from fisheyemotion._grid_kernels import accumulate
+    from fisheyemotion.flow import grid_centres
+
+    rng = np.random.default_rng(seed)
+    n = rows * cols
+    source = rng.integers(-1, n, (rows, cols)).astype(np.intp)
+    likelihood = np.where(rng.random((rows, cols)) < 0.2, np.nan, rng.random((rows, cols)) / 50)
+    carrier = (rng.normal(size=(rows, cols, 2)) * 4 * grid).astype(np.float32)
+    carrier[rng.random((rows, cols)) < 0.1] = np.nan
+    acc_before, age_before = rng.random((rows, cols)) / 50, rng.integers(0, 5, (rows, cols))
+    decay, threshold = 0.3, 0.004
+    acc, age = np.empty((rows, cols)), np.empty((rows, cols), np.int64)
+    accumulate(source, likelihood, carrier, acc_before, age_before, decay, threshold, gap, grid,
+               acc, age)
+    moved = carrier.reshape(n, 2)[np.maximum(source, 0)]
+    moved[source < 0] = np.nan
+    moved = np.nan_to_num(moved, nan=0.0)
+    back = grid_centres(cols * grid, rows * grid, grid) - moved / gap
+    c = np.clip(np.rint((back[..., 0] - (grid - 1) / 2) / grid), 0, cols - 1).astype(np.intp)
+    r = np.clip(np.rint((back[..., 1] - (grid - 1) / 2) / grid), 0, rows - 1).astype(np.intp)
+    want = (1 - decay) * np.nan_to_num(likelihood, nan=0.0) + decay * acc_before[r, c]
+    np.testing.assert_array_equal(acc, want)
+    np.testing.assert_array_equal(age, np.where(want > threshold, age_before[r, c] + 1, 0))
+
+
 def test_scene_prior_predicts_the_flow_of_structure_beside_the_road():
     r = synth.Renderer(CAM, WALL, supersample=1)
     f = [r.render(k) for k in range(4)]
