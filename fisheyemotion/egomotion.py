@@ -335,7 +335,7 @@ class PoseTracker:
         (constant velocity), or None before there is one."""
         if self._motion is None or not self._depths:
             return None
-        from .ground import provisional_road
+        from .ground import PREDICTION_DISTANCE, provisional_road
         from .prior import static_scene_targets
 
         pose0, pose1 = np.eye(4), np.linalg.inv(self._motion)
@@ -343,7 +343,8 @@ class PoseTracker:
 
         def predict(pixels):
             rays, _ = self.camera.unproject(pixels)
-            return static_scene_targets(self.camera, rays, pose0, pose1, road, 1e3)[0]
+            return static_scene_targets(self.camera, rays, pose0, pose1, road,
+                                        PREDICTION_DISTANCE)[0]
         return predict
 
     def _road_depth(self, r0, r1, transform) -> float | None:

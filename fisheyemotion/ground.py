@@ -219,6 +219,8 @@ class GroundEstimator:
         if not len(u0):
             return u0, r
         at = r.astype(np.float32)
+        # Channel by channel: one remap of the two-channel prior came out up to 0.4 px off a
+        # bilinear interpolation on a rough field (each single-channel one within 1e-6).
         px = cv2.remap(prior[..., 0], at[:, 0:1], at[:, 1:2], cv2.INTER_LINEAR)[:, 0]
         py = cv2.remap(prior[..., 1], at[:, 0:1], at[:, 1:2], cv2.INTER_LINEAR)[:, 0]
         return u0, r + np.stack([px, py], axis=-1)
