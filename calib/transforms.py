@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -90,6 +91,20 @@ def invert_transform(transform: ArrayLike) -> NDArray[np.float64]:
     t = np.asarray(transform, dtype=np.float64)
     r = t[:3, :3]
     return make_transform(r.T, -r.T @ t[:3, 3])
+
+
+def interpolate_transform(a: ArrayLike, b: ArrayLike, weight: float) -> NDArray[np.float64]:
+    """The rigid transform ``weight`` of the way from ``a`` to ``b`` (4x4 each).
+
+    Rotation by slerp, ``R_a exp(weight log(R_a^T R_b))`` (the geodesic on SO(3), so 0 gives
+    ``a``'s rotation and 1 ``b``'s); translation linearly. Undefined (any of the two geodesics)
+    where the two rotations are half a turn apart.
+    """
+    ta, tb = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    relative = ta[:3, :3].T @ tb[:3, :3]
+    axis_angle = cv2.Rodrigues(relative)[0]
+    rotation = ta[:3, :3] @ cv2.Rodrigues(weight * axis_angle)[0]
+    return make_transform(rotation, (1.0 - weight) * ta[:3, 3] + weight * tb[:3, 3])
 
 
 #: Metres: larger translations are not poses (products of such numbers overflow).

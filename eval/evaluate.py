@@ -112,7 +112,7 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
     elif camera_height is not None and not isinstance(camera_height, int | float):
         raise ValueError(f"camera_height: expected metres or 'scene', got {camera_height!r}")
     given = poses_for(seq, poses, params, noise=noise, roi=roi)
-    errors = pose_errors(given, seq.poses, params.frame_gap).set_index("frame")
+    errors = pose_errors(given.poses, seq.poses, params.frame_gap).set_index("frame")
     valid = cam.valid_pixel_mask() & (True if roi is None else roi > 0)
     moved, road_given = world_transform(world, seq.poses[0])
     if road not in ("given", "auto"):
@@ -133,11 +133,11 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
     grays = [to_gray(seq.frame(i), "frame") for i in range(min(gap, len(seq)))]
     for i, gray in enumerate(grays):  # a stream's road estimate sees every frame, as apply() does
         for detector in (main, *variants.values()):
-            detector._observe_ground(gray, moved @ given[i])
+            detector._observe_ground(gray, moved @ given.anchors[i] @ given.poses[i])
     for k in range(gap, len(seq)):
         grays.append(to_gray(seq.frame(k), "frame"))
         g0, g1 = grays.pop(0), grays[-1]
-        pose0, pose1 = moved @ given[k - gap], moved @ given[k]
+        pose0, pose1 = (moved @ pose for pose in given.pair(k, gap))
         if renderer is not None:
             # Where the surface point leaves the camera's domain the exact flow is NaN: carry it
             # out of the image (its cell is then not scored), not to a zero flow.

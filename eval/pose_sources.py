@@ -17,21 +17,22 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
 from fisheyemotion.calib.transforms import rotation_angle, vector_angle
 from numpy.typing import NDArray
 
-from fisheyemotion.detect import MotionDetector
 from fisheyemotion.egomotion import PoseTracker
 from fisheyemotion.frames import to_gray
 from fisheyemotion.params import Params
 from fisheyemotion.poses import Trajectory
+from fisheyemotion.refinement import PoseRefiner
 from fisheyemotion.road import Road
 from fisheyemotion.sequence import Sequence
 
-__all__ = ["POSE_SOURCES", "Perturbation", "pose_errors", "poses_for"]
+__all__ = ["POSE_SOURCES", "GivenPoses", "Perturbation", "pose_errors", "poses_for"]
 
 POSE_SOURCES = ("true", "estimated", "perturbed")
 
@@ -97,17 +98,37 @@ def estimated(seq: Sequence, mask: NDArray | None) -> NDArray[np.float64]:
     return np.stack([truth[0] @ pose for pose in chained])
 
 
-def refined(seq: Sequence, poses: NDArray, params: Params, mask: NDArray | None
-            ) -> NDArray[np.float64]:
+class GivenPoses(NamedTuple):
+    """What the detector is given: ``poses`` ``(N, 4, 4)`` and the ``anchors`` ``(N, 4, 4)``
+    that place them in the world. A pair ``(k - gap, k)`` runs with ``anchors[k] @ poses[k -
+    gap]`` and ``anchors[k] @ poses[k]``, as :meth:`fisheyemotion.MotionDetector.apply` does:
+    refined poses are a chain of relative motions whose anchor follows the given poses
+    (:mod:`fisheyemotion.refinement`); otherwise the anchors are the identity."""
+
+    poses: NDArray[np.float64]
+    anchors: NDArray[np.float64]
+
+    def pair(self, k: int, gap: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The world poses of frames ``k - gap`` and ``k`` as the pair ending at ``k`` uses
+        them."""
+        return self.anchors[k] @ self.poses[k - gap], self.anchors[k] @ self.poses[k]
+
+
+def refined(seq: Sequence, poses: NDArray, params: Params, mask: NDArray | None) -> GivenPoses:
     """``poses`` refined on the images by the detector's own refinement, frame by frame."""
-    detector = MotionDetector(seq.camera, params=params, roi=mask)
-    return np.stack([detector._refined(to_gray(seq.frame(k), "frame"), poses[k])
-                     for k in range(len(seq))])
+    refiner = PoseRefiner(seq.camera, mode=params.pose_refinement,
+                          tolerance=params.refine_tolerance,
+                          mask=seq.camera.valid_pixel_mask() & (True if mask is None else mask > 0))
+    chain, anchors = [], []
+    for k in range(len(seq)):
+        chain.append(refiner.step(to_gray(seq.frame(k), "frame"), poses[k]))
+        anchors.append(refiner.anchor)
+    return GivenPoses(np.stack(chain), np.stack(anchors))
 
 
 def poses_for(seq: Sequence, source: str, params: Params, *, noise: Perturbation | None = None,
-              roi: NDArray | None = None) -> NDArray[np.float64]:
-    """The poses ``(N, 4, 4)`` (scene frame) the detector is given for ``source``, refined when
+              roi: NDArray | None = None) -> GivenPoses:
+    """The poses (scene frame) the detector is given for ``source``, refined when
     ``params.pose_refinement`` says so."""
     if source not in POSE_SOURCES:
         raise ValueError(f"poses: expected one of {', '.join(POSE_SOURCES)}, got {source!r}")
@@ -118,8 +139,8 @@ def poses_for(seq: Sequence, source: str, params: Params, *, noise: Perturbation
     else:
         poses = perturbed(seq, noise or Perturbation())
     if params.pose_refinement != "off":
-        poses = refined(seq, poses, params, roi)
-    return poses
+        return refined(seq, poses, params, roi)
+    return GivenPoses(poses, np.broadcast_to(np.eye(4), poses.shape))
 
 
 def pose_errors(poses: NDArray, truth: NDArray, gap: int) -> pd.DataFrame:

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .calib.base import CameraModel
-from .calib.transforms import check_rigid, rotation_angle, vector_angle
+from .calib.transforms import check_rigid
 from .constraints import ConstraintResult, constraints
 from .egomotion import PoseTracker
 from .flow import (
@@ -39,6 +39,7 @@ from .ground_contact import standing_regions
 from .grow import grow_regions
 from .params import Params
 from .prior import EgoFlowPrior, lands_on, static_scene_targets
+from .refinement import PoseRefiner
 from .road import Road
 from .segment import Region, segment_cells
 from .significance import cell_sigma, pixel_angle
@@ -48,10 +49,6 @@ CONSTRAINT_NAMES = ("epipolar", "depth", "height", "antiparallel")
 
 #: Share of the image flagged moving above which a given road (or the poses) is suspect.
 FLOODED = 0.5
-
-#: ``pose_refinement='auto'`` also refines where the given direction of travel is off the images'
-#: by this many times ``refine_tolerance`` (the direction is measured less precisely).
-DIRECTION_TOLERANCE = 5.0
 
 #: Relative range difference within which a cell agrees with the static-scene model.
 SCENE_AGREEMENT = 0.05
@@ -212,8 +209,7 @@ class MotionDetector:
                       if self.params.scene_prior and self._prior is not None else None)
         self._road_warned = False
         self._tracker: PoseTracker | None = None
-        self._refiner: PoseTracker | None = None
-        self._refine_state: tuple[NDArray, NDArray] | None = None
+        self._refiner: PoseRefiner | None = None
         self._last_mask: NDArray[np.bool_] | None = None
         self.last_pose: NDArray[np.float64] | None = None
         self._pixel_angle: NDArray[np.float64] | None = None
@@ -251,6 +247,7 @@ class MotionDetector:
         warning). :attr:`last_pose` is the pose used.
         """
         gray = to_gray(frame, "frame", size=self.size)
+        anchor = None  # world_from_chain of refined poses: one for both poses of a pair
         if pose is None:
             t = self._estimated_pose(gray)
         else:
@@ -259,50 +256,24 @@ class MotionDetector:
                                  "without them); reset() before giving poses")
             t = check_rigid(pose, "pose")
             if self.params.pose_refinement != "off":
-                t = self._refined(gray, t)
-        self.last_pose = t
-        self._observe_ground(gray, t)
+                if self._refiner is None:
+                    self._refiner = PoseRefiner(self.camera, mode=self.params.pose_refinement,
+                                                tolerance=self.params.refine_tolerance,
+                                                mask=self._pixel_valid)
+                t = self._refiner.step(gray, t, self._last_mask)
+                anchor = self._refiner.anchor
+        world = t if anchor is None else anchor @ t
+        self.last_pose = world
+        self._observe_ground(gray, world)
         full = len(self._history) == self._history.maxlen
         prev, prev_pose = self._history[0] if full else (None, None)
         self._history.append((gray, t))
         if prev is None:
             return None
-        result = self._detect_gray(prev, gray, prev_pose, t, stream=True)
+        result = self._detect_gray(prev, gray, prev_pose if anchor is None else anchor @ prev_pose,
+                                   world, stream=True)
         self._last_mask = result.mask > 0
         return result
-
-    def _refined(self, gray: NDArray[np.uint8], pose: NDArray) -> NDArray[np.float64]:
-        """The given pose with its motion relative to the previous frame's (refined) pose
-        replaced by the images' where ``params.pose_refinement`` says so: the rotation and the
-        direction of travel from the images, the length of the step from the given poses (the
-        images have no scale)."""
-        if self._refiner is None:
-            self._refiner = PoseTracker(self.camera, mask=self._pixel_valid)
-        given_before, refined_before = self._refine_state or (None, None)
-        estimate = self._refiner.step(gray, self._last_mask)
-        out = pose
-        if estimate is not None and given_before is not None:
-            # cam_now_from_cam_before of the given poses, and of the images (unit translation).
-            given = np.linalg.inv(pose) @ given_before
-            angle = np.degrees(rotation_angle(given[:3, :3].T @ estimate[:3, :3]))
-            # The camera's displacement in the previous camera's frame, given and estimated.
-            step_given = -given[:3, :3].T @ given[:3, 3]
-            step_images = -estimate[:3, :3].T @ estimate[:3, 3]
-            length = float(np.linalg.norm(step_given))
-            off_course = np.degrees(vector_angle(step_given, step_images)) if length > 1e-9 else 0.0
-            if self.params.pose_refinement == "on" or angle > self.params.refine_tolerance \
-                    or off_course > DIRECTION_TOLERANCE * self.params.refine_tolerance:
-                out = pose.copy()
-                out[:3, :3] = refined_before[:3, :3] @ estimate[:3, :3].T
-                out[:3, 3] = refined_before[:3, 3] + refined_before[:3, :3] @ (step_images * length)
-        elif refined_before is not None and self._refiner.still:
-            # The images say the camera stood still: it did, whatever the given poses say.
-            out = refined_before.copy()
-        elif refined_before is not None:
-            # No estimate: carry the correction made so far.
-            out = refined_before @ np.linalg.inv(given_before) @ pose
-        self._refine_state = (pose, out)
-        return out
 
     def _estimated_pose(self, gray: NDArray[np.uint8]) -> NDArray[np.float64]:
         if self._tracker is None:
@@ -326,7 +297,7 @@ class MotionDetector:
         self._history.clear()
         self._temporal = None
         self._tracker, self._last_mask, self.last_pose = None, None, None
-        self._refiner, self._refine_state = None, None
+        self._refiner = None
         if self.scene is not None:
             self.scene.clear()
 

@@ -37,7 +37,13 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from .calib.transforms import check_rigid, make_transform, matrix_to_quat, quat_to_matrix
+from .calib.transforms import (
+    check_rigid,
+    interpolate_transform,
+    make_transform,
+    matrix_to_quat,
+    quat_to_matrix,
+)
 
 __all__ = ["POSE_FORMATS", "PoseMatcher", "Trajectory", "read_poses", "read_tum", "write_tum"]
 
@@ -104,8 +110,6 @@ class Trajectory:
             raise ValueError(f"{self.source}: has no timestamps to interpolate at")
         if not isinstance(max_gap, int | float) or not math.isfinite(max_gap) or max_gap < 0:
             raise ValueError(f"max_gap: expected a finite number of seconds >= 0, got {max_gap!r}")
-        from scipy.spatial.transform import Rotation, Slerp
-
         s, eps = self.stamps, 1e-9
         t = np.atleast_1d(np.asarray(times, dtype=np.float64))
         out = np.empty((len(t), 4, 4))
@@ -130,9 +134,7 @@ class Trajectory:
                                      f"{s[hi] - s[lo]:.4g} s between poses (more than {max_gap} s "
                                      "to one of them)")
                 w = (tk - s[lo]) / (s[hi] - s[lo])
-                rot = Slerp([0.0, 1.0], Rotation.from_matrix(self.poses[[lo, hi], :3, :3]))([w])
-                out[k] = make_transform(rot.as_matrix()[0],
-                                        (1 - w) * self.poses[lo, :3, 3] + w * self.poses[hi, :3, 3])
+                out[k] = interpolate_transform(self.poses[lo], self.poses[hi], w)
         return out
 
 

@@ -3,6 +3,7 @@ without poses."""
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
@@ -155,6 +156,7 @@ def test_pose_refinement_repairs_noisy_rotations(frames):
 
 
 def test_pose_refinement_takes_the_direction_of_travel_from_the_images_and_the_length_given(frames):
+    from fisheyemotion.refinement import PoseRefiner
 
     roi = synth.Renderer(CAM, SCENE, supersample=1).roi()
     rng = np.random.default_rng(6)
@@ -163,22 +165,43 @@ def test_pose_refinement_takes_the_direction_of_travel_from_the_images_and_the_l
         p = f.pose.copy()
         p[:3, 3] += 0.10 * 0.46 * _unit(rng)
         noisy.append(p)
-    det = fm.MotionDetector(CAM, fm.Road(), fm.Params(frame_gap=1, pose_refinement="on"),
-                            roi=roi)
-    refined = []
-    for f, p in zip(frames, noisy, strict=True):
-        det.apply(f.image, p)
-        refined.append(det.last_pose)
+    refiner = PoseRefiner(CAM, mode="on", tolerance=0.1, mask=roi > 0)
+    chain = [refiner.step(cv2.cvtColor(f.image, cv2.COLOR_BGR2GRAY), p)
+             for f, p in zip(frames, noisy, strict=True)]
     for k in range(2, len(frames)):
         true_step = frames[k].pose[:3, 3] - frames[k - 1].pose[:3, 3]
-        got_step = refined[k][:3, 3] - refined[k - 1][:3, 3]
+        got_step = chain[k][:3, 3] - chain[k - 1][:3, 3]
         given_step = noisy[k][:3, 3] - noisy[k - 1][:3, 3]
-        # Direction from the images (the true one within 1 deg, rotated into the refined frame
+        # Direction from the images (the true one within 1 deg, rotated into the chain's frame
         # whose orientation is the first noisy pose's), length as given.
         assert np.linalg.norm(got_step) == pytest.approx(np.linalg.norm(given_step), rel=1e-9)
-        r = refined[k - 1][:3, :3] @ frames[k - 1].pose[:3, :3].T
+        r = chain[k - 1][:3, :3] @ frames[k - 1].pose[:3, :3].T
         cos = (r @ true_step) @ got_step / (np.linalg.norm(true_step) * np.linalg.norm(got_step))
         assert np.degrees(np.arccos(min(1.0, cos))) < 1.0  # 3-7 deg unrefined
+
+
+def test_refined_poses_average_the_given_orientations_errors_not_keep_the_first(frames):
+    """The stream's refined pose (its anchor times its chain) is off the truth by about the
+    mean of the given poses' errors so far, not by the first given pose's error."""
+    from fisheyemotion.refinement import mean_rotation
+
+    from .scenes import rotation
+
+    roi = synth.Renderer(CAM, SCENE, supersample=1).roi()
+    rng = np.random.default_rng(8)
+    errors = [rotation(rng.normal(size=3), np.radians(0.5)) for _ in frames]
+    det = fm.MotionDetector(CAM, fm.Road(), fm.Params(frame_gap=1, pose_refinement="on"),
+                            roi=roi)
+    for k, f in enumerate(frames):
+        p = f.pose.copy()
+        p[:3, :3] = p[:3, :3] @ errors[k]
+        det.apply(f.image, p)
+        off = _angle(det.last_pose[:3, :3].T @ f.pose[:3, :3])
+        # The mean of the errors so far, up to what the images' relative poses add (0.02 deg
+        # a step, measured); the first given pose's error (0.5 deg) would fail from frame 1.
+        expected = _angle(mean_rotation(np.stack(errors[:k + 1])))
+        assert off == pytest.approx(expected, abs=0.03 * k + 1e-9)
+    assert off < 0.3
 
 
 def _unit(rng):
@@ -199,17 +222,17 @@ def test_eval_pose_sources_true_estimated_perturbed(ego_sequence):
 
     seq = Sequence(ego_sequence)
     params = fm.Params(frame_gap=1)
-    true = poses_for(seq, "true", params)
+    true = poses_for(seq, "true", params).poses
     assert np.array_equal(true, seq.poses)
     assert pose_errors(true, seq.poses, 1)[["rotation_error_deg", "direction_error_deg"]] \
         .abs().max().max() < 1e-6
     # From the images: every pair's rotation within 0.2 deg, direction within 3 deg.
-    errors = pose_errors(poses_for(seq, "estimated", params), seq.poses, 1)
+    errors = pose_errors(poses_for(seq, "estimated", params).poses, seq.poses, 1)
     assert errors.rotation_error_deg.max() < 0.2 and errors.direction_error_deg.max() < 3.0
     # Noise of the stated size: each frame's orientation off by exactly rotation_deg.
     noisy = poses_for(seq, "perturbed", params, noise=Perturbation(rotation_deg=0.4,
                                                                    translation=0.0,
-                                                                   time_offset_s=0.0))
+                                                                   time_offset_s=0.0)).poses
     for k in range(len(seq)):
         assert _angle(noisy[k, :3, :3].T @ seq.poses[k, :3, :3]) == pytest.approx(0.4, abs=1e-6)
     errs = pose_errors(noisy, seq.poses, 1).rotation_error_deg
@@ -217,7 +240,7 @@ def test_eval_pose_sources_true_estimated_perturbed(ego_sequence):
     # Refinement brings the rotation back to what the images say.
     refined = pose_errors(poses_for(seq, "perturbed", params.replace(pose_refinement="on"),
                                     noise=Perturbation(rotation_deg=0.4, translation=0.0,
-                                                       time_offset_s=0.0)), seq.poses, 1)
+                                                       time_offset_s=0.0)).poses, seq.poses, 1)
     assert refined.rotation_error_deg.iloc[1:].median() < errs.iloc[1:].median() / 2
     with pytest.raises(ValueError, match="poses"):
         poses_for(seq, "odometry", params)
