@@ -16,9 +16,9 @@ but nothing absolute. :class:`PoseRefiner` keeps both for what each is good at:
 
 The detector runs a frame pair with *one* anchor for both of its poses, so the pair's relative
 pose is the chain's, untouched by the anchor's changes, while the road given in the world
-(and everything else absolute) sees the camera within the averaged error. Before this the chain
-started at the first given pose and kept its error (a 0.3 deg tilt of the given road as the
-camera saw it, for the whole stream) plus the chain's drift (docs/evaluation.md).
+(and everything else absolute) sees the camera within the averaged error: about
+``sigma / sqrt(n)`` after ``n`` frames for given orientations off by ``sigma`` each
+(docs/evaluation.md, noisy poses).
 """
 
 from __future__ import annotations
