@@ -45,6 +45,7 @@ ADDITIONS = {
     "+ significance 3 sigma": {"significance": 3.0},
     "+ ground contact": {"ground_contact": True},
     "+ growth 4 cells": {"grow": 4},
+    "+ extension to half the threshold": {"extend_threshold": 0.0025},
 }
 
 #: Ablation: weights (mu_e, mu_d, mu_h, mu_p) of each variant; "paper" is the configured Params.

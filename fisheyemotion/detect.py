@@ -585,7 +585,8 @@ class MotionDetector:
         cell_mask, regions = segment_cells(cell_likelihood, threshold=p.threshold, grid=p.grid,
                                            min_area=p.min_area, age=age,
                                            persistence=p.persistence,
-                                           seed_threshold=p.seed_threshold)
+                                           seed_threshold=p.seed_threshold,
+                                           extend_threshold=p.extend_threshold)
         mask = grid_upsample(cell_mask.astype(np.uint8) * 255, p.grid, w, h)
         np.put(mask, self._pixels_outside, 0)
         if not self._road_warned and self.road.known and self.ground is None \

@@ -34,7 +34,8 @@ class Region(NamedTuple):
 
 def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, grid: int,
                   min_area: int, age: NDArray | None = None, persistence: int = 1,
-                  seed_threshold: float = 0.0) -> tuple[NDArray[np.bool_], list[Region]]:
+                  seed_threshold: float = 0.0, extend_threshold: float = 0.0
+                  ) -> tuple[NDArray[np.bool_], list[Region]]:
     """Cells above ``threshold`` grouped 8-connected; regions under ``min_area`` pixels dropped,
     and, with ``age``, regions none of whose cells has been moving ``persistence`` times.
 
@@ -44,6 +45,13 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
         NaN for invalid cells (never moving).
     age : ndarray of int, shape (rows, cols), optional
         Consecutive detections each cell has been moving in (streams).
+    seed_threshold : float
+        Hysteresis: a region is kept only if one of its cells exceeds this.
+    extend_threshold : float
+        Below ``threshold``: each region kept (of ``min_area`` cells above ``threshold``) is
+        extended to the cells above this connected to it through such cells (hysteresis with
+        the region as the seed; scikit-image's ``apply_hysteresis_threshold`` for a seed level).
+        0: off.
 
     Returns
     -------
@@ -56,6 +64,28 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
         moving = apply_hysteresis_threshold(values, threshold, seed_threshold)
     else:
         moving = values > threshold
+    if 0 < extend_threshold < threshold:
+        # Only regions that count as detections by themselves seed an extension: a speck under
+        # min_area must not grow past it through weak cells.
+        seeds, _ = _kept_regions(moving, values, grid, min_area, None, 1)
+        moving = _extended(seeds, values > extend_threshold)
+    return _kept_regions(moving, values, grid, min_area, age, persistence)
+
+
+def _extended(seeds: NDArray[np.bool_], weak: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """The 8-connected components of ``seeds | weak`` that hold a seed cell."""
+    n, labels = cv2.connectedComponents((seeds | weak).astype(np.uint8), connectivity=8,
+                                        ltype=cv2.CV_32S)
+    holds = np.zeros(n, dtype=bool)
+    holds[labels[seeds]] = True
+    holds[0] = False
+    return holds[labels]
+
+
+def _kept_regions(moving: NDArray[np.bool_], values: NDArray[np.float64], grid: int,
+                  min_area: int, age: NDArray | None, persistence: int
+                  ) -> tuple[NDArray[np.bool_], list[Region]]:
+    """The regions of ``moving`` of at least ``min_area`` pixels (and ``persistence``)."""
     # OpenCV's labelling gives each region's bounding box and size in the same pass, and keeps
     # scipy (0.17 s to import, through scikit-image's label) off a process's first detection.
     n, labels, stats, centroids = cv2.connectedComponentsWithStats(

@@ -255,6 +255,50 @@ def test_hysteresis_keeps_only_regions_with_a_strong_cell():
     np.testing.assert_array_equal(same, plain)
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_extension_is_scikit_images_hysteresis_seeded_by_the_kept_regions(seed):
+    """With no ``min_area`` the extension is a hysteresis threshold (low: ``extend_threshold``,
+    high: ``threshold``) over 8-connected components, here from scikit-image's labelling."""
+    from skimage.measure import label
+
+    from fisheyemotion.segment import segment_cells
+
+    rng = np.random.default_rng(seed)
+    cells = rng.uniform(0, 0.006, size=(24, 32))
+    cells[rng.random(cells.shape) < 0.05] = np.nan
+    values = np.nan_to_num(cells)
+    plain, _ = segment_cells(cells, threshold=0.004, grid=5, min_area=0)
+    mask, regions = segment_cells(cells, threshold=0.004, grid=5, min_area=0,
+                                  extend_threshold=0.002)
+    strong = values > 0.004
+    want = np.isin(label(values > 0.002, connectivity=2),
+                   np.unique(label(values > 0.002, connectivity=2)[strong]))
+    np.testing.assert_array_equal(mask, want)
+    assert mask[plain].all() and mask.sum() >= plain.sum()
+    assert sum(r.area for r in regions) == mask.sum() * 25
+    # At or above the threshold, or 0: no extension.
+    for off in (0.0, 0.004, 0.005):
+        same, _ = segment_cells(cells, threshold=0.004, grid=5, min_area=0,
+                                extend_threshold=off)
+        np.testing.assert_array_equal(same, plain)
+
+
+def test_a_speck_under_min_area_does_not_grow_into_a_detection():
+    from fisheyemotion.segment import segment_cells
+
+    cells = np.zeros((12, 12))
+    cells[1:5, 1:5] = 0.003             # weak cells ...
+    cells[2, 2] = 0.01                  # ... around one strong cell: 25 px, under min_area
+    cells[7:10, 7:10] = 0.01            # a region of 9 cells: 225 px
+    cells[6:11, 6:11] = np.where(cells[6:11, 6:11] > 0, cells[6:11, 6:11], 0.003)
+    mask, regions = segment_cells(cells, threshold=0.004, grid=5, min_area=100,
+                                  extend_threshold=0.002)
+    assert not mask[:6, :6].any()       # the speck neither grew nor survived
+    alone, _ = segment_cells(cells, threshold=0.004, grid=5, min_area=0, extend_threshold=0.002)
+    assert alone[1:5, 1:5].all()        # (without min_area it is a region and grows)
+    assert mask[6:11, 6:11].all() and mask.sum() == 25 and len(regions) == 1
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_region_properties_match_scikit_image_regionprops(seed):
     """The vectorised region properties equal scikit-image's regionprops, region by region."""
