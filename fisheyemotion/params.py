@@ -161,8 +161,8 @@ class Params:
         seed; :func:`fisheyemotion.segment.segment_cells`). 0 (default) or at or above
         ``threshold``: off. Measured (docs/evaluation.md): 0.002 takes crossing coverage from
         31 % to 49 % on the open road and IoU up in every scene group, but false regions grow
-        as much: static pixels flagged 1.6 -> 2.3 % there, and 0.9 -> 1.6 % of the real kitchen
-        clip's static background.
+        as much: static pixels flagged 1.6 -> 2.3 % there, and 0.85-0.88 -> 1.51-1.65 % of the
+        real kitchen clip's static background.
     min_area : int
         Regions smaller than this many pixels are dropped.
     saturation : float
