@@ -332,6 +332,9 @@ class Params:
             values = json.loads(text) if str(path).endswith(".json") else yaml.safe_load(text)
         except (ValueError, yaml.YAMLError, RecursionError) as exc:
             raise ValueError(f"{path}: cannot parse parameters: {_short(str(exc), 300)}") from None
+        if isinstance(values, dict) and isinstance(values.get("pose_refinement"), bool):
+            # YAML 1.1 reads an unquoted on / off (yes / no) as a boolean.
+            values["pose_refinement"] = "on" if values["pose_refinement"] else "off"
         try:
             return cls.from_dict(values or {})
         except ValueError as exc:

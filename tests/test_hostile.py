@@ -431,3 +431,13 @@ def test_cli_version_and_calib_reporting_every_file(capsys, calib_dir):
                  str(calib_dir / "opencv" / "tumvi_cam0_fisheye.yaml")])
     out, err = capsys.readouterr()
     assert code == 2 and "kannala_brandt" in out and "unknown-model-kalibr.yaml" in err
+
+
+@pytest.mark.parametrize(("text", "mode"), [("on", "on"), ("off", "off"), ("auto", "auto"),
+                                            ("'on'", "on"), ("yes", "on"), ("no", "off")])
+def test_a_yaml_on_or_off_pose_refinement_is_the_mode_not_a_boolean(tmp_path, text, mode):
+    # YAML 1.1 (PyYAML) reads an unquoted on / off / yes / no as a boolean.
+    (tmp_path / "p.yaml").write_text(f"pose_refinement: {text}\n")
+    assert fm.Params.load(tmp_path / "p.yaml").pose_refinement == mode
+    with pytest.raises(ValueError, match="pose_refinement"):
+        fm.Params(pose_refinement=True)  # in Python, a mode is a string
