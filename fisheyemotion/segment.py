@@ -1,6 +1,6 @@
 """Threshold + connected components on the grid of cell likelihoods (OpenCV's labelling, 8-connected;
 region properties for all labels at once with numpy; scikit-image's hysteresis threshold when a
-seed threshold is set)."""
+seed threshold is set; the extension of kept regions to weaker connected cells)."""
 
 from __future__ import annotations
 
@@ -49,9 +49,9 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
         Hysteresis: a region is kept only if one of its cells exceeds this.
     extend_threshold : float
         Below ``threshold``: each region kept (of ``min_area`` cells above ``threshold``) is
-        extended to the cells above this connected to it through such cells (hysteresis with
-        the region as the seed; scikit-image's ``apply_hysteresis_threshold`` for a seed level).
-        0: off.
+        extended to the cells above this connected to it (8-connected) through such cells: a
+        hysteresis threshold whose seeds are the kept regions, not single cells. 0, or at or
+        above ``threshold``: off.
 
     Returns
     -------
