@@ -203,12 +203,17 @@ def test_grid_transfer_moves_cells_by_their_flow_and_fills_gaps():
     assert (grid_gather(np.ones((rows, cols)), src)[:, 3:-3] == 1).all()
 
 
-def test_masks_are_on_the_current_frame():
-    scenario = synth.parse_scenario({
-        "name": "fast crosser", "frames": 2, "ego": {"speed_kmh": 5},
+def _crossing_car(*, frames: int, ego_kmh: float, start: list, kmh: float):
+    """An empty road and one car crossing it at ``kmh``."""
+    return synth.parse_scenario({
+        "name": "crosser", "frames": frames, "ego": {"speed_kmh": ego_kmh},
         "camera": {"position": [2, 0, 1.0], "pitch_deg": 15},
-        "objects": [{"id": 1, "kind": "car", "category": "crossing", "start": [8, -3],
-                     "heading_deg": 90, "speed_kmh": 40}]})
+        "objects": [{"id": 1, "kind": "car", "category": "crossing", "start": start,
+                     "heading_deg": 90, "speed_kmh": kmh}]})
+
+
+def test_masks_are_on_the_current_frame():
+    scenario = _crossing_car(frames=2, ego_kmh=5, start=[8, -3], kmh=40)
     cam = tumvi_kb(640, 480, 200.0)
     f0, f1 = synth.render_frames(cam, scenario)
     det = fm.MotionDetector(cam).detect_flow(np.nan_to_num(f1.flow), f0.pose, f1.pose)
@@ -313,11 +318,7 @@ def test_row_percentile_matches_numpy(rows, cols, missing, seed):
 # ---- extension ---------------------------------------------------------------------------
 
 def test_extension_covers_more_of_a_detected_object_and_keeps_what_was_found():
-    scenario = synth.parse_scenario({
-        "name": "slow crosser", "frames": 4, "ego": {"speed_kmh": 30},
-        "camera": {"position": [2, 0, 1.0], "pitch_deg": 15},
-        "objects": [{"id": 1, "kind": "car", "category": "crossing", "start": [10, -4],
-                     "heading_deg": 90, "speed_kmh": 8}]})
+    scenario = _crossing_car(frames=4, ego_kmh=30, start=[10, -4], kmh=8)
     cam = tumvi_kb(640, 480, 200.0)
     renderer = synth.Renderer(cam, scenario)
     f0, f3 = renderer.render(0), renderer.render(3)
