@@ -18,6 +18,7 @@ from fisheyemotion.outputs import atomic_folder
 from fisheyemotion.params import Params
 
 from .evaluate import evaluate, sequence_paths
+from .pose_sources import Perturbation
 from .report import table2_by_flow, write_report
 
 DEMO_CAMERA = "front_kb_640x480.yaml"
@@ -41,6 +42,16 @@ def _height(text: str) -> float | str:
         return float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected metres or 'scene', got {text!r}") from None
+
+
+def _seed(text: str) -> int:
+    try:
+        seed = int(text)
+    except ValueError:
+        seed = -1
+    if seed < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return seed
 
 
 def _flows(text: str) -> list[str]:
@@ -80,7 +91,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
                                    progress=not args.quiet,
                                    commands=["fisheyemotion " + shlex.join(sys.argv[1:])],
                                    world=args.world, road=args.road,
-                                   camera_height=args.camera_height, poses=args.poses)
+                                   camera_height=args.camera_height, poses=args.poses,
+                                   noise=Perturbation(seed=args.noise_seed))
         if args.additions:
             _write_additions(paths, args, out)
     _print_table2(results)
@@ -197,6 +209,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="the poses the detector is given: the true ones, estimated from the "
                         "images (speed from the true poses), or the true ones with noise "
                         "(0.3 deg, 3 %% of the step, 5 ms late) (default: %(default)s)")
+    p.add_argument("--noise-seed", type=_seed, default=0, metavar="N",
+                   help="with --poses perturbed: the noise's draw (default: %(default)s)")
     p.add_argument("--pose-refinement", choices=("off", "on", "auto"),
                    help="refine the given poses' rotation on the images first (default: the "
                         "one in --params, off)")

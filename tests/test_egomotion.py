@@ -298,3 +298,22 @@ def test_a_close_moving_object_with_more_corners_does_not_win_the_pose():
     truth = np.linalg.inv(pose1) @ pose0
     assert _angle(truth[:3, :3].T @ transform[:3, :3]) < 0.01
     assert inliers[:120].mean() > 0.9 and inliers[120:].mean() < 0.1
+
+
+def test_eval_cli_draws_the_pose_noise_by_seed(ego_sequence, tmp_path, capsys):
+    import pandas as pd
+
+    (tmp_path / "p.yaml").write_text("frame_gap: 1\nflow: dis\ndis_preset: ultrafast\n")
+    errors = {}
+    for seed in (0, 0, 1):
+        out = tmp_path / f"out{seed}{len(errors)}"
+        assert main(["eval", str(ego_sequence), "--poses", "perturbed", "--noise-seed", str(seed),
+                     "--params", str(tmp_path / "p.yaml"), "--workers", "1", "--quiet",
+                     "--out", str(out)]) == 0
+        frames = pd.read_csv(out / "frames.csv")
+        errors.setdefault(seed, []).append(frames.rotation_error_deg.to_numpy())
+    np.testing.assert_array_equal(*errors[0])              # a draw is reproducible
+    assert not np.allclose(errors[0][0], errors[1][0])      # another seed, another draw
+    with pytest.raises(SystemExit):
+        main(["eval", str(ego_sequence), "--noise-seed", "-1", "--out", str(tmp_path / "x")])
+    assert "integer >= 0" in capsys.readouterr().err
