@@ -147,7 +147,8 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
             flow, backward = main.flow(g0, g1, pose0, pose1, backward=True)
         else:
             flow, backward = main.flow(g0, g1, pose0, pose1), None
-        det = main.detect_flow(flow, pose0, pose1, backward=backward, prev=g0, stream=True)
+        det = main.detect_flow(flow, pose0, pose1, backward=backward, prev=g0, curr=g1,
+                               stream=True)
         ids, gt = seq.ids(k), seq.mask(k)
         frame_objects = objects[objects.frame == k]
         rows = object_metrics(det.mask, ids, frame_objects, range_limit=range_limit,
@@ -176,7 +177,8 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
         n_moving += int(((gt > 0) & valid).sum())
         n_static += int(((gt == 0) & valid).sum())
         for name, detector in variants.items():
-            d = detector.detect_flow(flow, pose0, pose1, backward=backward, prev=g0, stream=True)
+            d = detector.detect_flow(flow, pose0, pose1, backward=backward, prev=g0, curr=g1,
+                                     stream=True)
             for r in object_metrics(d.mask, ids, frame_objects, range_limit=range_limit,
                                     min_coverage=min_coverage):
                 abl_rows.append({"variant": name, "kind": "object", **r})

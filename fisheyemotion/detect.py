@@ -38,6 +38,7 @@ from .ground import GroundEstimator, provisional_road
 from .ground_contact import standing_regions
 from .grow import grow_regions
 from .params import Params
+from .photometric import static_explained
 from .prior import EgoFlowPrior, lands_on, static_scene_targets
 from .refinement import PoseRefiner
 from .road import Road
@@ -215,6 +216,7 @@ class MotionDetector:
         self._pixel_angle: NDArray[np.float64] | None = None
         self._view: NDArray[np.bool_] | None = None
         self._cell_samples: NDArray[np.intp] | None = None
+        self._static_flow: tuple[bytes, NDArray[np.float32]] | None = None
         self._temporal: tuple[NDArray, NDArray] | None = None
         self._history: deque[tuple[NDArray[np.uint8], NDArray[np.float64]]] = deque(
             maxlen=self.params.frame_gap)
@@ -303,13 +305,15 @@ class MotionDetector:
 
     def detect_flow(self, flow: NDArray, pose0: NDArray, pose1: NDArray, *,
                     backward: NDArray | None = None, prev: NDArray | None = None,
-                    stream: bool = False) -> Detection:
+                    curr: NDArray | None = None, stream: bool = False) -> Detection:
         """Detect from a dense flow ``(H, W, 2)`` computed elsewhere (``u' = u + flow``).
 
         ``backward`` (the flow from the current to the previous frame) enables the
         forward-backward check when ``params.fb_check`` is set; ``prev`` (the previous frame)
-        enables the texture check when ``params.min_texture > 0``; ``stream=True`` treats the
-        call as the next frame of a stream (temporal filtering, as :meth:`apply`).
+        enables the texture check when ``params.min_texture > 0``; ``prev`` and ``curr`` (the
+        current frame) enable the photometric check when ``params.photometric_check`` is set;
+        ``stream=True`` treats the call as the next frame of a stream (temporal filtering, as
+        :meth:`apply`).
         """
         shape = (self.size[1], self.size[0], 2)
         arrays = {"flow": flow, "backward": backward}
@@ -321,9 +325,10 @@ class MotionDetector:
                 raise ValueError(f"{name}: expected a float array of shape {shape}, got {a.dtype} {a.shape}")
         t0, t1 = check_rigid(pose0, "pose0"), check_rigid(pose1, "pose1")
         gray = None if prev is None else to_gray(prev, "prev", size=self.size)
+        gray1 = None if curr is None else to_gray(curr, "curr", size=self.size)
         return self._from_flow(np.asarray(flow, np.float32), t0, t1,
                                None if backward is None else np.asarray(backward, np.float32),
-                               gray, stream=stream)
+                               gray, curr=gray1, stream=stream)
 
     def flow(self, prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray,
              pose1: NDArray, *, backward: bool = False):
@@ -342,6 +347,7 @@ class MotionDetector:
             return self._flow(a, b)
         prior, seen = self._prior(pose_a, pose_b, self._prior_road(pose_a, pose_b),
                                   view=self._pixel_valid, scene=self.scene)
+        self._static_flow = (pose_a.tobytes() + pose_b.tobytes(), prior)
         if mode == "ego":
             return self._flow(a, b, prior)
         warped = warp_by(b, prior)
@@ -356,8 +362,9 @@ class MotionDetector:
     def _detect_gray(self, g0, g1, t0, t1, *, stream: bool = False) -> Detection:
         if self.params.fb_check:
             forward, backward = self.flow(g0, g1, t0, t1, backward=True)
-            return self._from_flow(forward, t0, t1, backward, g0, stream=stream)
-        return self._from_flow(self.flow(g0, g1, t0, t1), t0, t1, None, g0, stream=stream)
+            return self._from_flow(forward, t0, t1, backward, g0, curr=g1, stream=stream)
+        return self._from_flow(self.flow(g0, g1, t0, t1), t0, t1, None, g0, curr=g1,
+                               stream=stream)
 
     def _resolvable_cells(self, t0: NDArray, t1: NDArray, *, parallax: bool) -> NDArray[np.bool_]:
         """Cells the static-scene prediction says can be scored: its point is seen in the current
@@ -397,7 +404,8 @@ class MotionDetector:
         cell_mag = np.linalg.norm(cell_flow, axis=-1)
         return cell_error <= p.fb_tolerance + p.fb_relative * cell_mag
 
-    def _from_flow(self, flow, t0, t1, backward=None, gray=None, *, stream=False) -> Detection:
+    def _from_flow(self, flow, t0, t1, backward=None, gray=None, *, curr=None,
+                   stream=False) -> Detection:
         p = self.params
         cell_flow = grid_average(flow, p.grid)
         rays1, valid1 = self.camera.unproject(self._centres + cell_flow)
@@ -409,6 +417,11 @@ class MotionDetector:
             valid &= self._consistent_cells(flow, cell_flow, backward)
         if p.min_texture > 0 and gray is not None:
             valid &= self._textured_cells(gray)
+        explained = None  # before the scene model learns from this pair (the prior uses it)
+        if p.photometric_check and gray is not None and curr is not None \
+                and self._prior is not None:
+            explained = static_explained(gray, curr, flow, self._static_flow_for(t0, t1),
+                                         p.grid, p.photometric_margin)
         likelihood = res.likelihood
         sigma = None
         if (p.significance > 0 or (p.ground_contact and self.road.known)) \
@@ -436,10 +449,24 @@ class MotionDetector:
                     conditioned = parallax >= np.sin(TRIANGULATION_PARALLAX)
                     self.scene.add(self._rays0, np.where(conditioned, ranges, np.nan), t0,
                                    valid & (likelihood < p.threshold))
+        if explained is not None:
+            # Cannot start a region; a region moving elsewhere may extend over it.
+            likelihood = np.where(explained & valid,
+                                  np.fmin(likelihood, np.nextafter(p.threshold, 0.0)),
+                                  likelihood)
         if p.grow > 0 and not res.static_camera:
             likelihood = self._grown(likelihood, valid, cell_flow, t0, t1)
         self._check_road(t0)
         return self._assemble(flow, cell_flow, res, likelihood, valid, stream=stream)
+
+    def _static_flow_for(self, t0: NDArray, t1: NDArray) -> NDArray[np.float32]:
+        """The static scene's flow for this pair: the prior the flow was warped by, or computed
+        now (a flow from elsewhere)."""
+        key = t0.tobytes() + t1.tobytes()
+        if self._static_flow is not None and self._static_flow[0] == key:
+            return self._static_flow[1]
+        return self._prior(t0, t1, self._prior_road(t0, t1), view=self._pixel_valid,
+                           scene=self.scene)[0]
 
     def _grown(self, likelihood, valid, cell_flow, t0, t1) -> NDArray:
         """The likelihood with the cells that regions grow into (:mod:`fisheyemotion.grow`)

@@ -92,6 +92,16 @@ class Params:
         everywhere). The length of each step stays as given.
     refine_tolerance : float
         Degrees, for ``pose_refinement='auto'``.
+    photometric_check : bool
+        Cells where the static scene (the ego prior with the static-scene model) explains the
+        two frames photometrically as well as the measured flow does cannot start a region:
+        their likelihood is held just below ``threshold``, so that only a region moving
+        elsewhere takes them in, through ``extend_threshold``
+        (:mod:`fisheyemotion.photometric`). Needs both frames (``detect``, ``apply``, or
+        ``detect_flow(..., prev=, curr=)``) and the ego prior (``flow_prior``).
+    photometric_margin : float
+        Grey levels by which the static scene's mean absolute difference may exceed the
+        measured flow's for a cell to count as explained.
     grow : int
         Cells a detected region may grow by into neighbours whose residual flow (measured minus
         the static scene's) is like the region's (:mod:`fisheyemotion.grow`): the object's flow
@@ -188,6 +198,8 @@ class Params:
     flow_sigma: float = 0.25
     ground_contact: bool = True
     grow: int = 0
+    photometric_check: bool = False
+    photometric_margin: float = 5.0
     pose_refinement: str = "off"
     refine_tolerance: float = 0.1
     contact_ratio: float = 1.05
@@ -221,6 +233,7 @@ class Params:
         for name in ("lambda_h", "lambda_p", "lambda_p_ratio", "min_baseline", "epipole_margin",
                      "threshold", "saturation", "fb_tolerance", "fb_relative", "min_texture",
                      "min_parallax", "seed_threshold", "extend_threshold", "contact_ratio",
+                     "photometric_margin",
                      "significance", "flow_sigma", "refine_tolerance"):
             v = getattr(self, name)
             if not _finite(v) or v < 0:
@@ -247,7 +260,7 @@ class Params:
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {_short(v)}")
         for name in ("depth_both_views", "fb_check", "visibility_check", "scene_prior",
-                     "ground_contact"):
+                     "ground_contact", "photometric_check"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}: expected a bool, got {_short(getattr(self, name))}")
         fb = dict(self.farneback) if isinstance(self.farneback, dict) else None

@@ -1,0 +1,62 @@
+"""The photometric check of the static hypothesis: does the static scene explain the frames?
+
+The constraints judge a cell by its flow. Where the flow is wrong -- a flow method that locked
+onto a repeated texture, smoothed across a depth discontinuity or did not recover a large
+residual -- a static cell gets a deviation and becomes a false alarm. The images can tell: the
+flow claims that the previous frame's content at ``u`` is at ``u + f(u)`` in the current frame,
+the static scene (the ego prior with the static-scene model, :mod:`fisheyemotion.prior`)
+predicts ``u + s(u)``. Each claim has a photometric residual, the cell's mean absolute
+grey-level difference
+
+    r_f = mean |I0(u) - I1(u + f(u))|,    r_s = mean |I0(u) - I1(u + s(u))|
+
+(bilinear sampling). A moving object is not where the static scene predicts it, so ``r_s``
+exceeds ``r_f`` there; where ``r_s <= r_f + margin`` the static scene explains the frames at
+least as well as the measured flow, and the cell's deviation is not evidence of motion.
+
+Two kinds of motion the check cannot see: an object moving along its epipolar line (oncoming,
+preceding) seen as static is a consistent static scene at another depth, which the static-scene
+model may hold (the anti-parallel ambiguity, :mod:`fisheyemotion.ground_contact`), and an
+object with no texture. The detector therefore only stops such cells from *starting* a region
+(their likelihood is held just below the threshold) and lets a region that is moving elsewhere
+extend over them (``Params.extend_threshold``).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from .flow import grid_average, warp_by
+
+__all__ = ["cell_residual", "static_explained"]
+
+
+def cell_residual(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArray[np.float32],
+                  grid: int) -> NDArray[np.float32]:
+    """Mean absolute grey-level difference ``|prev(u) - curr(u + flow(u))|`` of each cell.
+
+    Parameters
+    ----------
+    prev, curr : ndarray of uint8, shape (H, W)
+    flow : ndarray of float32, shape (H, W, 2)
+    grid : int
+        Cell size, pixels (whole cells only, as :func:`fisheyemotion.flow.grid_average`).
+
+    Returns
+    -------
+    ndarray of float32, shape (H // grid, W // grid)
+    """
+    difference = cv2.absdiff(prev, warp_by(curr, flow))
+    return grid_average(difference.astype(np.float32), grid)
+
+
+def static_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
+                     flow: NDArray[np.float32], static_flow: NDArray[np.float32], grid: int,
+                     margin: float) -> NDArray[np.bool_]:
+    """Cells ``(H // grid, W // grid)`` where the static scene's flow explains the frames within
+    ``margin`` grey levels of the measured flow: ``r_s <= r_f + margin`` (module doc)."""
+    measured = cell_residual(prev, curr, flow, grid)
+    static = cell_residual(prev, curr, static_flow, grid)
+    return static <= measured + margin
