@@ -46,6 +46,7 @@ ADDITIONS = {
     "+ ground contact": {"ground_contact": True},
     "+ growth 4 cells": {"grow": 4},
     "+ extension to half the threshold": {"extend_threshold": 0.0025},
+    "+ photometric check": {"photometric_check": True},
 }
 
 #: Ablation: weights (mu_e, mu_d, mu_h, mu_p) of each variant; "paper" is the configured Params.

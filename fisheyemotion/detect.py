@@ -205,9 +205,10 @@ class MotionDetector:
         self._pixels_outside = np.flatnonzero(~pixel_valid)  # flat: set to 0 in every result
         self._flow = FlowEstimator(self.params)
         self._prior = (EgoFlowPrior(camera, distance=self.params.prior_distance)
-                       if self.params.flow_prior != "none" else None)
+                       if self.params.flow_prior != "none" or self.params.photometric_check
+                       else None)
         self.scene = (StaticScene(camera, memory=self.params.scene_memory)
-                      if self.params.scene_prior and self._prior is not None else None)
+                      if self.params.scene_prior and self.params.flow_prior != "none" else None)
         self._road_warned = False
         self._tracker: PoseTracker | None = None
         self._refiner: PoseRefiner | None = None
@@ -418,8 +419,7 @@ class MotionDetector:
         if p.min_texture > 0 and gray is not None:
             valid &= self._textured_cells(gray)
         explained = None  # before the scene model learns from this pair (the prior uses it)
-        if p.photometric_check and gray is not None and curr is not None \
-                and self._prior is not None:
+        if p.photometric_check and gray is not None and curr is not None:
             explained = static_explained(gray, curr, flow, self._static_flow_for(t0, t1),
                                          p.grid, p.photometric_margin)
         likelihood = res.likelihood

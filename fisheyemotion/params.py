@@ -98,7 +98,8 @@ class Params:
         their likelihood is held just below ``threshold``, so that only a region moving
         elsewhere takes them in, through ``extend_threshold``
         (:mod:`fisheyemotion.photometric`). Needs both frames (``detect``, ``apply``, or
-        ``detect_flow(..., prev=, curr=)``) and the ego prior (``flow_prior``).
+        ``detect_flow(..., prev=, curr=)``); the static scene is the ego prior's, with the
+        static-scene model where ``scene_prior`` keeps one.
     photometric_margin : float
         Grey levels by which the static scene's mean absolute difference may exceed the
         measured flow's for a cell to count as explained.
