@@ -418,10 +418,9 @@ class MotionDetector:
             valid &= self._consistent_cells(flow, cell_flow, backward)
         if p.min_texture > 0 and gray is not None:
             valid &= self._textured_cells(gray)
-        explained = None  # before the scene model learns from this pair (the prior uses it)
+        static_flow = None  # before the scene model learns from this pair (the prior uses it)
         if p.photometric_check and gray is not None and curr is not None:
-            explained = static_explained(gray, curr, flow, self._static_flow_for(t0, t1),
-                                         p.grid, p.photometric_margin)
+            static_flow = self._static_flow_for(t0, t1)
         likelihood = res.likelihood
         sigma = None
         if (p.significance > 0 or (p.ground_contact and self.road.known)) \
@@ -449,11 +448,14 @@ class MotionDetector:
                     conditioned = parallax >= np.sin(TRIANGULATION_PARALLAX)
                     self.scene.add(self._rays0, np.where(conditioned, ranges, np.nan), t0,
                                    valid & (likelihood < p.threshold))
-        if explained is not None:
-            # Cannot start a region; a region moving elsewhere may extend over it.
-            likelihood = np.where(explained & valid,
-                                  np.fmin(likelihood, np.nextafter(p.threshold, 0.0)),
-                                  likelihood)
+        if static_flow is not None:
+            # Cannot start a region; a region moving elsewhere may extend over it. Only the
+            # cells above the threshold can change: only they are tested.
+            with np.errstate(invalid="ignore"):
+                above = valid & (likelihood > p.threshold)
+            explained = static_explained(gray, curr, flow, static_flow, p.grid,
+                                         p.photometric_margin, cells=above)
+            likelihood = np.where(explained, np.nextafter(p.threshold, 0.0), likelihood)
         if p.grow > 0 and not res.static_camera:
             likelihood = self._grown(likelihood, valid, cell_flow, t0, t1)
         self._check_road(t0)

@@ -32,10 +32,13 @@ from .flow import grid_average, warp_by
 
 __all__ = ["cell_residual", "static_explained"]
 
+_ROWS = 32000  # cells per remap call
+
 
 def cell_residual(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArray[np.float32],
-                  grid: int) -> NDArray[np.float32]:
-    """Mean absolute grey-level difference ``|prev(u) - curr(u + flow(u))|`` of each cell.
+                  grid: int, cells: NDArray[np.bool_] | None = None) -> NDArray[np.float32]:
+    """Mean absolute grey-level difference ``|prev(u) - curr(u + flow(u))|`` of each cell
+    (bilinear sampling, edges replicated, as :func:`fisheyemotion.flow.warp_by`).
 
     Parameters
     ----------
@@ -43,20 +46,44 @@ def cell_residual(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArra
     flow : ndarray of float32, shape (H, W, 2)
     grid : int
         Cell size, pixels (whole cells only, as :func:`fisheyemotion.flow.grid_average`).
+    cells : ndarray of bool, shape (H // grid, W // grid), optional
+        Only these cells are computed (the others are NaN): their pixels are sampled alone.
 
     Returns
     -------
     ndarray of float32, shape (H // grid, W // grid)
     """
-    difference = cv2.absdiff(prev, warp_by(curr, flow))
-    return grid_average(difference.astype(np.float32), grid)
+    if cells is None:
+        difference = cv2.absdiff(prev, warp_by(curr, flow))
+        return grid_average(difference.astype(np.float32), grid)
+    out = np.full(cells.shape, np.nan, np.float32)
+    r, c = np.nonzero(cells)
+    if len(r) == 0:
+        return out
+    # Every pixel of the chosen cells, cell by cell: (n, grid * grid).
+    dv, du = np.divmod(np.arange(grid * grid), grid)
+    v = (r[:, None] * grid + dv).ravel()
+    u = (c[:, None] * grid + du).ravel()
+    f = flow[v, u]
+    # One row of the map per cell (OpenCV's maps are under 32767 on a side).
+    # In float32 as warp_by adds them (its identity map plus the flow): the same samples.
+    at = np.stack([u.astype(np.float32) + f[:, 0], v.astype(np.float32) + f[:, 1]], axis=-1)
+    at = at.reshape(len(r), grid * grid, 2)
+    sampled = np.concatenate([
+        cv2.remap(curr, at[i:i + _ROWS], None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        for i in range(0, len(r), _ROWS)])
+    difference = cv2.absdiff(prev[v, u].reshape(len(r), grid * grid), sampled)
+    out[r, c] = difference.astype(np.float32).mean(axis=1)
+    return out
 
 
 def static_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
                      flow: NDArray[np.float32], static_flow: NDArray[np.float32], grid: int,
-                     margin: float) -> NDArray[np.bool_]:
+                     margin: float, cells: NDArray[np.bool_] | None = None) -> NDArray[np.bool_]:
     """Cells ``(H // grid, W // grid)`` where the static scene's flow explains the frames within
-    ``margin`` grey levels of the measured flow: ``r_s <= r_f + margin`` (module doc)."""
-    measured = cell_residual(prev, curr, flow, grid)
-    static = cell_residual(prev, curr, static_flow, grid)
-    return static <= measured + margin
+    ``margin`` grey levels of the measured flow: ``r_s <= r_f + margin`` (module doc); with
+    ``cells``, only those are tested (False elsewhere)."""
+    measured = cell_residual(prev, curr, flow, grid, cells)
+    static = cell_residual(prev, curr, static_flow, grid, cells)
+    with np.errstate(invalid="ignore"):
+        return static <= measured + margin

@@ -348,6 +348,23 @@ def test_cell_residual_is_zero_for_the_true_shift_and_not_for_another():
     assert cell_residual(prev, curr, np.zeros_like(true), 5)[inner].min() > 2
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_cell_residual_of_chosen_cells_is_the_whole_images(seed):
+    from fisheyemotion.photometric import cell_residual
+
+    rng = np.random.default_rng(seed)
+    prev = cv2.GaussianBlur(rng.integers(0, 255, (120, 160), dtype=np.uint8), (5, 5), 1.0)
+    curr = np.roll(prev, 3, axis=1)
+    flow = (rng.normal(size=(120, 160, 2)) * 4).astype(np.float32)
+    flow[:5] += 50.0                                      # some samples far outside: replicated
+    whole = cell_residual(prev, curr, flow, 5)
+    cells = rng.random(whole.shape) < 0.3
+    chosen = cell_residual(prev, curr, flow, 5, cells)
+    np.testing.assert_allclose(chosen[cells], whole[cells], atol=1e-4)
+    assert np.isnan(chosen[~cells]).all()
+    assert np.isnan(cell_residual(prev, curr, flow, 5, np.zeros_like(cells))).all()
+
+
 def test_photometric_check_removes_a_flow_error_on_static_structure_and_keeps_the_car():
     scenario = _crossing_car(frames=4, ego_kmh=30, start=[10, -4], kmh=20)
     cam = tumvi_kb(640, 480, 200.0)
