@@ -448,18 +448,19 @@ class MotionDetector:
                     conditioned = parallax >= np.sin(TRIANGULATION_PARALLAX)
                     self.scene.add(self._rays0, np.where(conditioned, ranges, np.nan), t0,
                                    valid & (likelihood < p.threshold))
+        seeds = None
         if static_flow is not None:
-            # Cannot start a region; a region moving elsewhere may extend over it. Only the
-            # cells above the threshold can change: only they are tested.
+            # A region is reported only if one of its cells (above the threshold: only they
+            # are tested) is not explained by the static scene.
             with np.errstate(invalid="ignore"):
                 above = valid & (likelihood > p.threshold)
-            explained = static_explained(gray, curr, flow, static_flow, p.grid,
-                                         p.photometric_margin, cells=above)
-            likelihood = np.where(explained, np.nextafter(p.threshold, 0.0), likelihood)
+            seeds = above & ~static_explained(gray, curr, flow, static_flow, p.grid,
+                                              p.photometric_margin, cells=above)
         if p.grow > 0 and not res.static_camera:
             likelihood = self._grown(likelihood, valid, cell_flow, t0, t1)
         self._check_road(t0)
-        return self._assemble(flow, cell_flow, res, likelihood, valid, stream=stream)
+        return self._assemble(flow, cell_flow, res, likelihood, valid, stream=stream,
+                              seeds=seeds)
 
     def _static_flow_for(self, t0: NDArray, t1: NDArray) -> NDArray[np.float32]:
         """The static scene's flow for this pair: the prior the flow was warped by, or computed
@@ -586,7 +587,7 @@ class MotionDetector:
         return np.where(np.isnan(cell_likelihood), np.nan, acc), age
 
     def _assemble(self, flow, cell_flow, res: ConstraintResult, likelihood, valid, *,
-                  stream: bool = False) -> Detection:
+                  stream: bool = False, seeds: NDArray[np.bool_] | None = None) -> Detection:
         p, (w, h) = self.params, self.size
         measured = np.where(valid, likelihood, np.nan)
         # The measurement lives on the previous frame's cells; the result belongs to the current
@@ -615,7 +616,9 @@ class MotionDetector:
                                            min_area=p.min_area, age=age,
                                            persistence=p.persistence,
                                            seed_threshold=p.seed_threshold,
-                                           extend_threshold=p.extend_threshold)
+                                           extend_threshold=p.extend_threshold,
+                                           seeds=None if seeds is None
+                                           else grid_gather(seeds, source, False))
         mask = grid_upsample(cell_mask.astype(np.uint8) * 255, p.grid, w, h)
         np.put(mask, self._pixels_outside, 0)
         if not self._road_warned and self.road.known and self.ground is None \

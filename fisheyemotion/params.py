@@ -93,13 +93,13 @@ class Params:
     refine_tolerance : float
         Degrees, for ``pose_refinement='auto'``.
     photometric_check : bool
-        Cells where the static scene (the ego prior with the static-scene model) explains the
-        two frames photometrically as well as the measured flow does cannot start a region:
-        their likelihood is held just below ``threshold``, so that only a region moving
-        elsewhere takes them in, through ``extend_threshold``
-        (:mod:`fisheyemotion.photometric`). Needs both frames (``detect``, ``apply``, or
-        ``detect_flow(..., prev=, curr=)``); the static scene is the ego prior's, with the
-        static-scene model where ``scene_prior`` keeps one.
+        A region is reported only if one of its cells is not explained photometrically by the
+        static scene (the ego prior with the static-scene model): the two frames' mean
+        absolute difference after warping by the static scene's flow exceeds the one after
+        warping by the measured flow by more than ``photometric_margin``
+        (:mod:`fisheyemotion.photometric`). Regions made only of flow errors on static
+        structure are dropped. Needs both frames (``detect``, ``apply``, or
+        ``detect_flow(..., prev=, curr=)``).
     photometric_margin : float
         Grey levels by which the static scene's mean absolute difference may exceed the
         measured flow's for a cell to count as explained.
@@ -200,7 +200,7 @@ class Params:
     ground_contact: bool = True
     grow: int = 0
     photometric_check: bool = False
-    photometric_margin: float = 5.0
+    photometric_margin: float = 10.0
     pose_refinement: str = "off"
     refine_tolerance: float = 0.1
     contact_ratio: float = 1.05

@@ -16,10 +16,10 @@ least as well as the measured flow, and the cell's deviation is not evidence of 
 
 Two kinds of motion the check cannot see: an object moving along its epipolar line (oncoming,
 preceding) seen as static is a consistent static scene at another depth, which the static-scene
-model may hold (the anti-parallel ambiguity, :mod:`fisheyemotion.ground_contact`), and an
-object with no texture. The detector therefore only stops such cells from *starting* a region
-(their likelihood is held just below the threshold) and lets a region that is moving elsewhere
-extend over them (``Params.extend_threshold``).
+model may hold (the anti-parallel ambiguity, :mod:`fisheyemotion.ground_contact`), and plain,
+slowly moving parts of an object. The detector therefore judges regions, not cells: a region
+is reported only if at least one of its cells is *not* explained (``segment_cells(seeds=...)``);
+cells are not removed from a region that has one. Only cells above the threshold are tested.
 """
 
 from __future__ import annotations

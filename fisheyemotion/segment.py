@@ -34,7 +34,8 @@ class Region(NamedTuple):
 
 def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, grid: int,
                   min_area: int, age: NDArray | None = None, persistence: int = 1,
-                  seed_threshold: float = 0.0, extend_threshold: float = 0.0
+                  seed_threshold: float = 0.0, extend_threshold: float = 0.0,
+                  seeds: NDArray[np.bool_] | None = None
                   ) -> tuple[NDArray[np.bool_], list[Region]]:
     """Cells above ``threshold`` grouped 8-connected; regions under ``min_area`` pixels dropped,
     and, with ``age``, regions none of whose cells has been moving ``persistence`` times.
@@ -52,6 +53,9 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
         extended to the cells above this connected to it (8-connected) through such cells: a
         hysteresis threshold whose seeds are the kept regions, not single cells. 0, or at or
         above ``threshold``: off.
+    seeds : ndarray of bool, shape (rows, cols), optional
+        Regions none of whose cells is a seed are dropped (the photometric check's cells the
+        static scene does not explain, :mod:`fisheyemotion.photometric`).
 
     Returns
     -------
@@ -67,8 +71,10 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
     if 0 < extend_threshold < threshold:
         # Only regions that count as detections by themselves seed an extension: a speck under
         # min_area must not grow past it through weak cells.
-        seeds, _ = _kept_regions(moving, values, grid, min_area, None, 1)
-        moving = _extended(seeds, values > extend_threshold)
+        kept, _ = _kept_regions(moving, values, grid, min_area, None, 1)
+        moving = _extended(kept, values > extend_threshold)
+    if seeds is not None:
+        moving = _extended(seeds & moving, moving)
     return _kept_regions(moving, values, grid, min_area, age, persistence)
 
 

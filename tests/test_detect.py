@@ -283,6 +283,22 @@ def test_extension_is_scikit_images_hysteresis_seeded_by_the_kept_regions(seed):
         np.testing.assert_array_equal(same, plain)
 
 
+def test_seeds_keep_whole_regions_that_hold_one_and_drop_the_rest():
+    from fisheyemotion.segment import segment_cells
+
+    cells = np.zeros((10, 12))
+    cells[1:4, 1:4] = 0.006            # a region without a seed
+    cells[6:9, 6:10] = 0.006           # a region with one seed cell
+    seeds = np.zeros(cells.shape, bool)
+    seeds[7, 8] = True
+    seeds[0, 11] = True                # a seed outside every region changes nothing
+    mask, regions = segment_cells(cells, threshold=0.004, grid=5, min_area=0, seeds=seeds)
+    assert mask[6:9, 6:10].all() and mask.sum() == 12 and len(regions) == 1
+    plain, _ = segment_cells(cells, threshold=0.004, grid=5, min_area=0)
+    every, _ = segment_cells(cells, threshold=0.004, grid=5, min_area=0, seeds=cells > 0)
+    np.testing.assert_array_equal(every, plain)
+
+
 def test_a_speck_under_min_area_does_not_grow_into_a_detection():
     from fisheyemotion.segment import segment_cells
 
