@@ -56,25 +56,41 @@ def cell_residual(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArra
     if cells is None:
         difference = cv2.absdiff(prev, warp_by(curr, flow))
         return grid_average(difference.astype(np.float32), grid)
-    out = np.full(cells.shape, np.nan, np.float32)
+    return _cell_residuals(prev, curr, (flow,), grid, cells)[0]
+
+
+def _blocks(image: NDArray, grid: int, r: NDArray[np.intp], c: NDArray[np.intp]) -> NDArray:
+    """The ``grid x grid`` pixels of cells ``(r, c)``: shape ``(n, grid, grid, ...)``."""
+    rows, cols = image.shape[0] // grid, image.shape[1] // grid
+    view = image[: rows * grid, : cols * grid].reshape(rows, grid, cols, grid, *image.shape[2:])
+    return view.swapaxes(1, 2)[r, c]
+
+
+def _cell_residuals(prev, curr, flows, grid, cells) -> list[NDArray[np.float32]]:
+    """:func:`cell_residual` of ``cells`` for each of ``flows``, sharing the gathering and one
+    remap of all of them."""
+    outs = [np.full(cells.shape, np.nan, np.float32) for _ in flows]
     r, c = np.nonzero(cells)
-    if len(r) == 0:
-        return out
-    # Every pixel of the chosen cells, cell by cell: (n, grid * grid).
-    dv, du = np.divmod(np.arange(grid * grid), grid)
-    v = (r[:, None] * grid + dv).ravel()
-    u = (c[:, None] * grid + du).ravel()
-    f = flow[v, u]
+    n = len(r)
+    if n == 0:
+        return outs
+    d = np.arange(grid, dtype=np.float32)
+    # Pixel coordinates in float32, as warp_by's identity map: the same samples as it takes.
+    u = (c * grid).astype(np.float32)[:, None, None] + d[None, None, :]
+    v = (r * grid).astype(np.float32)[:, None, None] + d[None, :, None]
+    maps = np.concatenate([np.stack([u + f[..., 0], v + f[..., 1]], axis=-1)
+                           for f in (_blocks(flow, grid, r, c) for flow in flows)])
     # One row of the map per cell (OpenCV's maps are under 32767 on a side).
-    # In float32 as warp_by adds them (its identity map plus the flow): the same samples.
-    at = np.stack([u.astype(np.float32) + f[:, 0], v.astype(np.float32) + f[:, 1]], axis=-1)
-    at = at.reshape(len(r), grid * grid, 2)
+    maps = maps.reshape(len(flows) * n, grid * grid, 2)
     sampled = np.concatenate([
-        cv2.remap(curr, at[i:i + _ROWS], None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        for i in range(0, len(r), _ROWS)])
-    difference = cv2.absdiff(prev[v, u].reshape(len(r), grid * grid), sampled)
-    out[r, c] = difference.astype(np.float32).mean(axis=1)
-    return out
+        cv2.remap(curr, maps[i:i + _ROWS], None, cv2.INTER_LINEAR,
+                  borderMode=cv2.BORDER_REPLICATE)
+        for i in range(0, len(maps), _ROWS)])
+    before = np.tile(_blocks(prev, grid, r, c).reshape(n, grid * grid), (len(flows), 1))
+    means = cv2.absdiff(before, sampled).astype(np.float32).mean(axis=1)
+    for k, out in enumerate(outs):
+        out[r, c] = means[k * n:(k + 1) * n]
+    return outs
 
 
 def static_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
@@ -83,7 +99,10 @@ def static_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
     """Cells ``(H // grid, W // grid)`` where the static scene's flow explains the frames within
     ``margin`` grey levels of the measured flow: ``r_s <= r_f + margin`` (module doc); with
     ``cells``, only those are tested (False elsewhere)."""
-    measured = cell_residual(prev, curr, flow, grid, cells)
-    static = cell_residual(prev, curr, static_flow, grid, cells)
+    if cells is None:
+        measured = cell_residual(prev, curr, flow, grid)
+        static = cell_residual(prev, curr, static_flow, grid)
+    else:
+        measured, static = _cell_residuals(prev, curr, (flow, static_flow), grid, cells)
     with np.errstate(invalid="ignore"):
         return static <= measured + margin
