@@ -346,9 +346,9 @@ class MotionDetector:
         mode = self.params.flow_prior
         if mode == "none":
             return self._flow(a, b)
-        prior, seen = self._prior(pose_a, pose_b, self._prior_road(pose_a, pose_b),
-                                  view=self._pixel_valid, scene=self.scene)
-        self._static_flow = (pose_a.tobytes() + pose_b.tobytes(), prior)
+        prior, seen = self._static_prior(pose_a, pose_b)
+        if self.params.photometric_check:  # for the check of this pair, once
+            self._static_flow = (pose_a.tobytes() + pose_b.tobytes(), prior)
         if mode == "ego":
             return self._flow(a, b, prior)
         warped = warp_by(b, prior)
@@ -462,14 +462,21 @@ class MotionDetector:
         return self._assemble(flow, cell_flow, res, likelihood, valid, stream=stream,
                               seeds=seeds)
 
+    def _static_prior(self, pose_a: NDArray, pose_b: NDArray
+                      ) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
+        """The ego prior's flow from ``pose_a`` to ``pose_b`` with the static-scene model as it
+        is now, and where it is seen."""
+        return self._prior(pose_a, pose_b, self._prior_road(pose_a, pose_b),
+                           view=self._pixel_valid, scene=self.scene)
+
     def _static_flow_for(self, t0: NDArray, t1: NDArray) -> NDArray[np.float32]:
-        """The static scene's flow for this pair: the prior the flow was warped by, or computed
-        now (a flow from elsewhere)."""
-        key = t0.tobytes() + t1.tobytes()
-        if self._static_flow is not None and self._static_flow[0] == key:
-            return self._static_flow[1]
-        return self._prior(t0, t1, self._prior_road(t0, t1), view=self._pixel_valid,
-                           scene=self.scene)[0]
+        """The static scene's flow for this pair: the prior the flow was just warped by (taken
+        once: the scene model learns from the pair after the check), or computed now (a flow
+        from elsewhere)."""
+        cached, self._static_flow = self._static_flow, None
+        if cached is not None and cached[0] == t0.tobytes() + t1.tobytes():
+            return cached[1]
+        return self._static_prior(t0, t1)[0]
 
     def _grown(self, likelihood, valid, cell_flow, t0, t1) -> NDArray:
         """The likelihood with the cells that regions grow into (:mod:`fisheyemotion.grow`)
