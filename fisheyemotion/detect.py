@@ -202,7 +202,10 @@ class MotionDetector:
         # A cell is used only if all of its pixels have rays.
         self._cell_valid = valid0 & (grid_average(pixel_valid.astype(np.float32), g) > 1 - 1e-6)
         self._pixel_valid = pixel_valid
-        self._pixels_outside = np.flatnonzero(~pixel_valid)  # flat: set to 0 in every result
+        # Every result is 0 outside the valid pixels: bit masks for the masks (uint8) and for
+        # the maps (float32, through an int32 view: NaN or not, a value ANDed with 0 is +0.0).
+        self._inside_u8 = np.where(pixel_valid, 255, 0).astype(np.uint8)
+        self._inside_bits = np.where(pixel_valid, -1, 0).astype(np.int32)
         self._flow = FlowEstimator(self.params)
         self._prior = (EgoFlowPrior(camera, distance=self.params.prior_distance)
                        if self.params.flow_prior != "none" or self.params.photometric_check
@@ -541,7 +544,8 @@ class MotionDetector:
         the road (:mod:`fisheyemotion.ground_contact`) and agree with the scene model
         (``range_error``: each cell's relative range error from its flow's)."""
         p = self.params
-        weighted = p.weights[3] * np.nan_to_num(res.antiparallel) / sum(p.weights)
+        antiparallel = np.where(np.isnan(res.antiparallel), 0.0, res.antiparallel)
+        weighted = p.weights[3] * antiparallel / sum(p.weights)
         with np.errstate(invalid="ignore", divide="ignore"):
             moving = valid & (likelihood > p.threshold)
             share = np.where(moving, weighted / likelihood, 0.0)
@@ -607,7 +611,8 @@ class MotionDetector:
 
         def to_image(cells: NDArray[np.float64]) -> NDArray[np.float32]:
             full = grid_upsample(np.where(valid_now, cells, 0.0).astype(np.float32), p.grid, w, h)
-            np.put(full, self._pixels_outside, 0)
+            bits = full.view(np.int32)
+            cv2.bitwise_and(bits, self._inside_bits, dst=bits)
             return full
 
         def now(cells: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -618,7 +623,7 @@ class MotionDetector:
         age = None
         if stream and (p.temporal_decay > 0 or p.persistence > 1):
             cell_likelihood, age = self._temporal_filter(cell_likelihood, carrier, source)
-        likelihood = to_image(np.nan_to_num(cell_likelihood, nan=0.0))
+        likelihood = to_image(np.where(np.isnan(cell_likelihood), 0.0, cell_likelihood))
         cell_mask, regions = segment_cells(cell_likelihood, threshold=p.threshold, grid=p.grid,
                                            min_area=p.min_area, age=age,
                                            persistence=p.persistence,
@@ -626,8 +631,8 @@ class MotionDetector:
                                            extend_threshold=p.extend_threshold,
                                            seeds=None if seeds is None
                                            else grid_gather(seeds, source, False))
-        mask = grid_upsample(cell_mask.astype(np.uint8) * 255, p.grid, w, h)
-        np.put(mask, self._pixels_outside, 0)
+        mask = cv2.bitwise_and(grid_upsample(cell_mask.astype(np.uint8) * 255, p.grid, w, h),
+                               self._inside_u8)
         if not self._road_warned and self.road.known and self.ground is None \
                 and cell_mask[self._cell_valid].mean() > FLOODED:
             self._road_warned = True

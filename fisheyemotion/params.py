@@ -199,7 +199,7 @@ class Params:
     flow_sigma: float = 0.25
     ground_contact: bool = True
     grow: int = 0
-    photometric_check: bool = False
+    photometric_check: bool = True
     photometric_margin: float = 10.0
     pose_refinement: str = "off"
     refine_tolerance: float = 0.1
@@ -279,7 +279,7 @@ class Params:
         ``docs/evaluation.md``). The paper does not state its likelihood threshold; this uses
         0.005."""
         return cls(**{"flow_prior": "none", "scene_prior": False, "ground_contact": False,
-                      "significance": 0.0, "grow": 0,
+                      "significance": 0.0, "grow": 0, "photometric_check": False,
                       "fb_check": False,
                       "frame_gap": 1, "min_texture": 0.0,
                       "visibility_check": False, "threshold": 0.005, "temporal_decay": 0.0,
