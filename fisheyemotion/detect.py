@@ -38,7 +38,7 @@ from .ground import GroundEstimator, provisional_road
 from .ground_contact import standing_regions
 from .grow import grow_regions
 from .params import Params
-from .photometric import static_explained
+from .photometric import epipolar_directions, static_explained
 from .prior import EgoFlowPrior, lands_on, static_scene_targets
 from .refinement import PoseRefiner
 from .road import Road
@@ -457,8 +457,16 @@ class MotionDetector:
             # are tested) is not explained by the static scene.
             with np.errstate(invalid="ignore"):
                 above = valid & (likelihood > p.threshold)
+            def along(cells):  # the epipolar curves at the cells' predicted points
+                r, c = np.nonzero(cells)
+                centre = (p.grid - 1) // 2  # the cell's centre pixel (odd grids: exact)
+                at = self._centres[r, c] + static_flow[r * p.grid + centre, c * p.grid + centre]
+                return epipolar_directions(self.camera, at, t0, t1)
+
             seeds = above & ~static_explained(gray, curr, flow, static_flow, p.grid,
-                                              p.photometric_margin, cells=above)
+                                              p.photometric_margin, cells=above,
+                                              tolerance=p.photometric_tolerance,
+                                              directions=along)
         if p.grow > 0 and not res.static_camera:
             likelihood = self._grown(likelihood, valid, cell_flow, t0, t1)
         self._check_road(t0)

@@ -103,6 +103,11 @@ class Params:
     photometric_margin : float
         Grey levels by which the static scene's mean absolute difference may exceed the
         measured flow's for a cell to count as explained.
+    photometric_tolerance : float
+        Pixels by which the static scene's prediction may be off: a cell also counts as
+        explained when the static flow moved by this along either image axis explains it
+        (the scene model's ranges, the road and the poses are a fraction of a pixel off, which
+        on a sharp edge is tens of grey levels). 0 tests the prediction as it is.
     grow : int
         Cells a detected region may grow by into neighbours whose residual flow (measured minus
         the static scene's) is like the region's (:mod:`fisheyemotion.grow`): the object's flow
@@ -201,6 +206,7 @@ class Params:
     grow: int = 0
     photometric_check: bool = True
     photometric_margin: float = 10.0
+    photometric_tolerance: float = 0.25
     pose_refinement: str = "off"
     refine_tolerance: float = 0.1
     contact_ratio: float = 1.05
@@ -234,7 +240,7 @@ class Params:
         for name in ("lambda_h", "lambda_p", "lambda_p_ratio", "min_baseline", "epipole_margin",
                      "threshold", "saturation", "fb_tolerance", "fb_relative", "min_texture",
                      "min_parallax", "seed_threshold", "extend_threshold", "contact_ratio",
-                     "photometric_margin",
+                     "photometric_margin", "photometric_tolerance",
                      "significance", "flow_sigma", "refine_tolerance"):
             v = getattr(self, name)
             if not _finite(v) or v < 0:

@@ -14,6 +14,17 @@ grey-level difference
 exceeds ``r_f`` there; where ``r_s <= r_f + margin`` the static scene explains the frames at
 least as well as the measured flow, and the cell's deviation is not evidence of motion.
 
+The static scene's prediction is itself a little off: the scene model's ranges, the road and the
+given step length carry errors of a few per cent, which move the predicted point along its
+epipolar curve (a static point's image at another range; ``docs/geometry.md``) by a fraction
+of a pixel -- and on a sharp edge a quarter of a pixel is tens of grey levels. With a
+``tolerance`` ``t`` (pixels) a cell also counts as explained when the static flow moved by
+``t`` either way along the epipolar curve at the predicted point explains it:
+``min(r_s, r_s(+t d), r_s(-t d)) <= r_f + margin``, ``d`` the curve's unit image direction
+(:func:`epipolar_directions`). The two are sampled only at the cells the unmoved static flow
+does not explain. A moving object is off its curve by its own motion, which a quarter of a
+pixel along the curve does not undo.
+
 Two kinds of motion the check cannot see: an object moving along its epipolar line (oncoming,
 preceding) seen as static is a consistent static scene at another depth, which the static-scene
 model may hold (the anti-parallel ambiguity, :mod:`fisheyemotion.ground_contact`), and plain,
@@ -24,21 +35,23 @@ cells are not removed from a region that has one. Only cells above the threshold
 
 from __future__ import annotations
 
-import cv2
+from collections.abc import Callable
+
 import numpy as np
 from numpy.typing import NDArray
 
-from .flow import grid_average, warp_by
+from .calib.base import CameraModel
 
-__all__ = ["cell_residual", "static_explained"]
+_STEP = 1e-4  # radians along the epipolar circle, either way, for its image direction
 
-_ROWS = 32000  # cells per remap call
+__all__ = ["cell_residual", "epipolar_directions", "static_explained"]
+
 
 
 def cell_residual(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArray[np.float32],
                   grid: int, cells: NDArray[np.bool_] | None = None) -> NDArray[np.float32]:
     """Mean absolute grey-level difference ``|prev(u) - curr(u + flow(u))|`` of each cell
-    (bilinear sampling, edges replicated, as :func:`fisheyemotion.flow.warp_by`).
+    (exact bilinear sampling, edges replicated; NaN where a sample position is not finite).
 
     Parameters
     ----------
@@ -54,55 +67,89 @@ def cell_residual(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArra
     ndarray of float32, shape (H // grid, W // grid)
     """
     if cells is None:
-        difference = cv2.absdiff(prev, warp_by(curr, flow))
-        return grid_average(difference.astype(np.float32), grid)
+        cells = np.ones((prev.shape[0] // grid, prev.shape[1] // grid), bool)
     return _cell_residuals(prev, curr, (flow,), grid, cells)[0]
 
 
-def _blocks(image: NDArray, grid: int, r: NDArray[np.intp], c: NDArray[np.intp]) -> NDArray:
-    """The ``grid x grid`` pixels of cells ``(r, c)``: shape ``(n, grid, grid, ...)``."""
-    rows, cols = image.shape[0] // grid, image.shape[1] // grid
-    view = image[: rows * grid, : cols * grid].reshape(rows, grid, cols, grid, *image.shape[2:])
-    return view.swapaxes(1, 2)[r, c]
+def _cell_residuals(prev, curr, flows, grid, cells, shifts=()) -> list[NDArray[np.float32]]:
+    """:func:`cell_residual` of ``cells`` for each of ``flows``, then for the last flow moved
+    by each of ``shifts`` (``(n, 2)`` pixels, one row per cell of ``cells`` in row-major
+    order)."""
+    from ._grid_kernels import block_residuals  # numba on first use: a light import
 
-
-def _cell_residuals(prev, curr, flows, grid, cells) -> list[NDArray[np.float32]]:
-    """:func:`cell_residual` of ``cells`` for each of ``flows``, sharing the gathering and one
-    remap of all of them."""
-    outs = [np.full(cells.shape, np.nan, np.float32) for _ in flows]
+    outs = [np.full(cells.shape, np.nan, np.float32) for _ in (*flows, *shifts)]
     r, c = np.nonzero(cells)
-    n = len(r)
-    if n == 0:
+    if len(r) == 0:
         return outs
-    d = np.arange(grid, dtype=np.float32)
-    # Pixel coordinates in float32, as warp_by's identity map: the same samples as it takes.
-    u = (c * grid).astype(np.float32)[:, None, None] + d[None, None, :]
-    v = (r * grid).astype(np.float32)[:, None, None] + d[None, :, None]
-    maps = np.concatenate([np.stack([u + f[..., 0], v + f[..., 1]], axis=-1)
-                           for f in (_blocks(flow, grid, r, c) for flow in flows)])
-    # One row of the map per cell (OpenCV's maps are under 32767 on a side).
-    maps = maps.reshape(len(flows) * n, grid * grid, 2)
-    sampled = np.concatenate([
-        cv2.remap(curr, maps[i:i + _ROWS], None, cv2.INTER_LINEAR,
-                  borderMode=cv2.BORDER_REPLICATE)
-        for i in range(0, len(maps), _ROWS)])
-    before = np.tile(_blocks(prev, grid, r, c).reshape(n, grid * grid), (len(flows), 1))
-    means = cv2.absdiff(before, sampled).astype(np.float32).mean(axis=1)
-    for k, out in enumerate(outs):
-        out[r, c] = means[k * n:(k + 1) * n]
+    values = np.empty(len(r))
+    none = np.zeros((len(r), 2))
+    prev, curr = np.ascontiguousarray(prev), np.ascontiguousarray(curr)
+    jobs = [(flow, none) for flow in flows] + [(flows[-1], s) for s in shifts]
+    for out, (flow, shift) in zip(outs, jobs, strict=True):
+        block_residuals(prev, curr, np.ascontiguousarray(flow, np.float32), r, c, int(grid),
+                        np.ascontiguousarray(shift, np.float64), values)
+        out[r, c] = values
     return outs
+
+
+def epipolar_directions(camera: CameraModel, pixels: NDArray, pose0: NDArray, pose1: NDArray
+                        ) -> NDArray[np.float64]:
+    """Unit image direction, at ``pixels`` of the current image, of the epipolar curve through
+    each: where a static point seen there moves when its range changes (the great circle
+    through its ray ``q`` and the epipole ``e'``, :mod:`fisheyemotion.constraints`).
+
+    Parameters
+    ----------
+    camera : CameraModel
+    pixels : ndarray, shape (n, 2)
+        Points of the current image.
+    pose0, pose1 : ndarray, shape (4, 4)
+        ``world_from_cam`` of the previous and current camera (validated by the caller).
+
+    Returns
+    -------
+    ndarray of float64, shape (n, 2)
+        NaN where the pixel has no ray, the camera did not move, the ray is along the epipole
+        or the curve leaves the camera's domain there.
+    """
+    q, ok = camera.unproject(pixels)
+    baseline = pose0[:3, 3] - pose1[:3, 3]
+    b = float(np.linalg.norm(baseline))
+    if not b > 0:
+        return np.full((len(q), 2), np.nan)
+    e = pose1[:3, :3].T @ (baseline / b)  # e' in the current camera's frame
+    tangent = e - (q @ e)[:, None] * q
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tangent /= np.linalg.norm(tangent, axis=-1, keepdims=True)
+        ahead, ok_ahead = camera.project(q + _STEP * tangent)
+        behind, ok_behind = camera.project(q - _STEP * tangent)
+        step = ahead - behind  # central: the curve's tangent to O(step^2)
+        direction = step / np.linalg.norm(step, axis=-1, keepdims=True)
+    return np.where((ok & ok_ahead & ok_behind)[:, None], direction, np.nan)
 
 
 def static_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
                      flow: NDArray[np.float32], static_flow: NDArray[np.float32], grid: int,
-                     margin: float, cells: NDArray[np.bool_] | None = None) -> NDArray[np.bool_]:
+                     margin: float, cells: NDArray[np.bool_] | None = None,
+                     tolerance: float = 0.0,
+                     directions: Callable[[NDArray[np.bool_]], NDArray] | None = None
+                     ) -> NDArray[np.bool_]:
     """Cells ``(H // grid, W // grid)`` where the static scene's flow explains the frames within
-    ``margin`` grey levels of the measured flow: ``r_s <= r_f + margin`` (module doc); with
-    ``cells``, only those are tested (False elsewhere)."""
+    ``margin`` grey levels of the measured flow, or the same moved by ``tolerance`` pixels
+    either way along ``directions(cells)`` (``(n, 2)`` unit image directions of the ``n``
+    cells still unexplained, row-major; NaN: no such test) does (module doc). With ``cells``
+    only those are tested (False elsewhere); without, every whole cell.
+    """
     if cells is None:
-        measured = cell_residual(prev, curr, flow, grid)
-        static = cell_residual(prev, curr, static_flow, grid)
-    else:
-        measured, static = _cell_residuals(prev, curr, (flow, static_flow), grid, cells)
+        cells = np.ones((prev.shape[0] // grid, prev.shape[1] // grid), bool)
+    measured, static = _cell_residuals(prev, curr, (flow, static_flow), grid, cells)
     with np.errstate(invalid="ignore"):
-        return static <= measured + margin
+        explained = static <= measured + margin
+    left = cells & ~explained
+    if tolerance > 0 and directions is not None and left.any():
+        shift = np.nan_to_num(tolerance * np.asarray(directions(left), np.float64))
+        moved = _cell_residuals(prev, curr, (static_flow,), grid, left, shifts=(shift, -shift))
+        with np.errstate(invalid="ignore"):
+            for residual in moved[1:]:
+                explained |= left & (residual <= measured + margin)
+    return explained

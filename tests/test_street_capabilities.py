@@ -17,7 +17,7 @@ from fisheyemotion.prior import EgoFlowPrior
 from fisheyemotion.significance import cell_sigma, pixel_angle
 from fisheyemotion.static_scene import StaticScene, triangulate_range
 
-from .cameras import tumvi_kb
+from .cameras import ALL_CAMERAS, CAMERA_IDS, tumvi_kb
 from .scenes import camera_pose, moved, rays_of
 
 CAM = tumvi_kb(320, 240, 100.0)
@@ -363,6 +363,80 @@ def test_cell_residual_of_chosen_cells_is_the_whole_images(seed):
     np.testing.assert_allclose(chosen[cells], whole[cells], atol=1e-4)
     assert np.isnan(chosen[~cells]).all()
     assert np.isnan(cell_residual(prev, curr, flow, 5, np.zeros_like(cells))).all()
+
+
+def test_cell_residual_matches_an_opencv_remap_of_the_whole_image():
+    """Golden values from an independent implementation: cv2.remap (1/32-pixel weights,
+    rounded to grey levels) then OpenCV's area resize, within half a grey level."""
+    from fisheyemotion.flow import grid_average, warp_by
+    from fisheyemotion.photometric import cell_residual
+
+    rng = np.random.default_rng(7)
+    prev = cv2.GaussianBlur(rng.integers(0, 255, (120, 160), dtype=np.uint8), (5, 5), 1.0)
+    curr = np.roll(prev, (1, 3), axis=(0, 1))
+    flow = (rng.normal(size=(120, 160, 2)) * 4).astype(np.float32)
+    flow[:5] += 50.0                                      # far outside: the edge replicated
+    opencv = grid_average(cv2.absdiff(prev, warp_by(curr, flow)).astype(np.float32), 5)
+    np.testing.assert_allclose(cell_residual(prev, curr, flow, 5), opencv, atol=0.5)
+    flow[7, 12, 0] = np.nan                               # a position that is not a number
+    residual = cell_residual(prev, curr, flow, 5)
+    assert np.isnan(residual[1, 2]) and np.isfinite(np.delete(residual.ravel(), 1 * 32 + 2)).all()
+
+
+@pytest.mark.parametrize("name,cam", [(n, c) for n, c in ALL_CAMERAS if n != "pinhole"],
+                         ids=[i for i, (n, _) in zip(CAMERA_IDS, ALL_CAMERAS) if n != "pinhole"])
+def test_epipolar_directions_are_where_a_static_point_moves_with_its_range(name, cam):
+    from fisheyemotion.photometric import epipolar_directions
+
+    rng = np.random.default_rng(11)
+    pose0 = camera_pose(rng, height=1.2, pitch_deg=5)
+    pose1 = moved(pose0, [0.6, 0.1, 0.02], yaw_deg=2.0)
+    pixels = np.stack([rng.uniform(0, cam.width - 1, 400), rng.uniform(0, cam.height - 1, 400)], -1)
+    rays, ok = cam.unproject(pixels)
+    points = pose0[:3, 3] + rng.uniform(2, 30, (400, 1)) * (rays @ pose0[:3, :3].T)
+    seen, ok1 = cam.project((points - pose1[:3, 3]) @ pose1[:3, :3])
+    # The same point a little nearer and a little farther along its ray from the first camera:
+    # the image's tangent to the curve (central difference).
+    nearer, ok2 = cam.project((pose0[:3, 3] + (1 - 1e-5) * (points - pose0[:3, 3]) - pose1[:3, 3])
+                              @ pose1[:3, :3])
+    farther, ok3 = cam.project((pose0[:3, 3] + (1 + 1e-5) * (points - pose0[:3, 3])
+                                - pose1[:3, 3]) @ pose1[:3, :3])
+    use = ok & ok1 & ok2 & ok3
+    d = epipolar_directions(cam, seen[use], pose0, pose1)
+    step = nearer[use] - farther[use]
+    big = np.linalg.norm(step, axis=-1) > 1e-6           # the point moved in the image
+    step = step[big] / np.linalg.norm(step[big], axis=-1, keepdims=True)
+    d = d[big]
+    fine = np.isfinite(d).all(axis=-1)
+    assert fine.mean() > 0.95
+    assert np.abs(step[fine, 0] * d[fine, 1] - step[fine, 1] * d[fine, 0]).max() < 1e-4
+    np.testing.assert_allclose(np.linalg.norm(d[fine], axis=-1), 1.0, atol=1e-9)
+    assert np.isnan(epipolar_directions(cam, seen[use][:3], pose0, pose0)).all()  # no motion
+
+
+def test_the_tolerance_explains_a_prediction_off_along_its_epipolar_curve_only():
+    from fisheyemotion.photometric import static_explained
+
+    rng = np.random.default_rng(5)
+    prev = cv2.GaussianBlur(rng.integers(0, 255, (60, 80), dtype=np.uint8), (3, 3), 0.7)
+    curr = np.roll(prev, (2, 3), axis=(0, 1))
+    flow = np.zeros((60, 80, 2), np.float32)
+    flow[..., 0], flow[..., 1] = 3, 2                     # the measured flow: right
+    cells = np.zeros((12, 16), bool)
+    cells[2:-2, 2:-2] = True
+    d = np.array([0.6, 0.8])                              # the curve's direction everywhere
+    off = {"along": 0.25 * d, "across": 0.25 * np.array([-0.8, 0.6])}
+    explained = {}
+    for key, error in off.items():
+        static = flow + error.astype(np.float32)          # the static scene, 0.25 px off
+        for tolerance in (0.0, 0.25):
+            explained[key, tolerance] = static_explained(
+                prev, curr, flow, static, 5, 1.0, cells=cells, tolerance=tolerance,
+                directions=lambda left: np.tile(d, (left.sum(), 1)))
+    assert not explained["along", 0.0][cells].any()      # a sharp texture: 0.25 px is too much
+    assert explained["along", 0.25][cells].all()          # ... unless it is along the curve
+    assert not explained["across", 0.25][cells].any()     # across it, the tolerance does not help
+    assert not explained["along", 0.25][~cells].any()     # untested cells stay unexplained
 
 
 def test_photometric_check_removes_a_flow_error_on_static_structure_and_keeps_the_car():
