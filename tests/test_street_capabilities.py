@@ -383,8 +383,11 @@ def test_cell_residual_matches_an_opencv_remap_of_the_whole_image():
     assert np.isnan(residual[1, 2]) and np.isfinite(np.delete(residual.ravel(), 1 * 32 + 2)).all()
 
 
-@pytest.mark.parametrize("name,cam", [(n, c) for n, c in ALL_CAMERAS if n != "pinhole"],
-                         ids=[i for i, (n, _) in zip(CAMERA_IDS, ALL_CAMERAS) if n != "pinhole"])
+_FISHEYES = [(i, n, c) for i, (n, c) in zip(CAMERA_IDS, ALL_CAMERAS, strict=True) if n != "pinhole"]
+
+
+@pytest.mark.parametrize("name,cam", [(n, c) for _, n, c in _FISHEYES],
+                         ids=[i for i, _, _ in _FISHEYES])
 def test_epipolar_directions_are_where_a_static_point_moves_with_its_range(name, cam):
     from fisheyemotion.photometric import epipolar_directions
 
