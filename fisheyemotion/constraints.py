@@ -143,6 +143,47 @@ def constraints(
                             static_camera=False)
 
 
+def nearest_static_ray(rays0: NDArray[np.float64], rays1: NDArray[np.float64], pose0: NDArray,
+                       pose1: NDArray) -> NDArray[np.float64]:
+    """The current ray of a static point nearest to ``rays1``: ``p'`` projected onto its
+    epipolar circle and clamped to the arc from ``e'`` (``lambda -> 0``) to ``p``
+    (``lambda -> inf``) of the module doc, in the current camera's frame.
+
+    Its epipolar and depth deviations are 0; its height and anti-parallel ones are those of the
+    static point at that range.
+
+    Parameters
+    ----------
+    rays0, rays1 : ndarray of float64, shape (n, 3)
+        Unit rays in the previous and current camera frames.
+    pose0, pose1 : ndarray, shape (4, 4)
+        ``world_from_cam`` of the two cameras (validated by the caller).
+
+    Returns
+    -------
+    ndarray of float64, shape (n, 3)
+        Unit rays; NaN where the epipolar plane is undefined (``p`` along ``e'``, or no
+        baseline).
+    """
+    r0, r1 = pose0[:3, :3], pose1[:3, :3]
+    baseline = pose0[:3, 3] - pose1[:3, 3]
+    b = float(np.linalg.norm(baseline))
+    p = rays0 @ r0.T
+    if not b > 0:
+        return np.full(p.shape, np.nan)
+    e = baseline / b
+    q = rays1 @ r1.T
+    n = _unit(np.cross(p, e))
+    u = _unit(q - np.sum(q * n, axis=-1, keepdims=True) * n)
+    k = np.sum(p * e, axis=-1, keepdims=True)
+    ue = np.sum(u * e, axis=-1, keepdims=True)
+    up = np.sum(u * p, axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore"):
+        # u = (a e' + c p) (1 - k^2)^-1 with a = ue - k up, c = up - k ue: only the signs count.
+        u = np.where(ue - k * up < 0, p, np.where(up - k * ue < 0, e, u))
+    return u @ r1
+
+
 def _result(xi_e, xi_d, xi_h, xi_p, likelihood, valid, *, static: bool,
             shape: tuple[int, ...]) -> ConstraintResult:
     out = []

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from .calib.base import CameraModel
 from .calib.transforms import check_rigid
-from .constraints import ConstraintResult, constraints
+from .constraints import ConstraintResult, constraints, nearest_static_ray
 from .egomotion import PoseTracker
 from .flow import (
     FlowEstimator,
@@ -38,7 +38,7 @@ from .ground import GroundEstimator, provisional_road
 from .ground_contact import standing_regions
 from .grow import grow_regions
 from .params import Params
-from .photometric import epipolar_directions, static_explained
+from .photometric import epipolar_directions, off_arc_supported, static_explained
 from .prior import EgoFlowPrior, lands_on, static_scene_targets
 from .refinement import PoseRefiner
 from .road import Road
@@ -467,46 +467,36 @@ class MotionDetector:
                                               p.photometric_margin, cells=above,
                                               tolerance=p.photometric_tolerance,
                                               directions=along)
-            import os as _os
-            if _os.environ.get("FM_ARC2") and seeds.any() and sigma is not None:
-                seeds = self._arc2(seeds, flow, cell_flow, rays1, t0, t1, gray, curr, sigma)
+            if p.photometric_arc and seeds.any() and not res.static_camera:
+                seeds &= self._supported_off_arc(seeds, flow, cell_flow, rays1, t0, t1, gray,
+                                                 curr, sigma)
         if p.grow > 0 and not res.static_camera:
             likelihood = self._grown(likelihood, valid, cell_flow, t0, t1)
         self._check_road(t0)
         return self._assemble(flow, cell_flow, res, likelihood, valid, stream=stream,
                               seeds=seeds)
 
-    def _arc2(self, seeds, flow, cell_flow, rays1, t0, t1, gray, curr, sigma):
-        import os as _os
-        from .photometric import _cell_residuals
+    def _supported_off_arc(self, seeds, flow, cell_flow, rays1, t0, t1, gray, curr, sigma
+                           ) -> NDArray[np.bool_]:
+        """The seed cells whose evidence the images support (:mod:`fisheyemotion.photometric`):
+        their deviation from the epipolar arc, or else their likelihood at the static
+        correspondence nearest the measured one (on the arc: the height and anti-parallel
+        deviations, the height's significance)."""
         p = self.params
         r, c = np.nonzero(seeds)
-        p_cam, q_cam = self._rays0[r, c], rays1[r, c]
-        # nearest static ray on the arc
-        R0, R1 = t0[:3, :3], t1[:3, :3]
-        base = t0[:3, 3] - t1[:3, 3]; b = np.linalg.norm(base); e = base / b
-        pw, qw = p_cam @ R0.T, q_cam @ R1.T
-        n = np.cross(pw, e); n /= np.linalg.norm(n, axis=-1, keepdims=True)
-        u = qw - np.sum(qw * n, -1, keepdims=True) * n; u /= np.linalg.norm(u, axis=-1, keepdims=True)
-        k = np.sum(pw * e, -1, keepdims=True); ue = np.sum(u * e, -1, keepdims=True); up = np.sum(u * pw, -1, keepdims=True)
-        a = ue - k * up; cc = up - k * ue
-        u = np.where(a < 0, pw, np.where(cc < 0, e, u))
-        arc = u @ R1
-        pix, ok = self.camera.project(arc)
-        shift = pix - (self._centres[r, c] + cell_flow[r, c])
-        ok &= np.isfinite(shift).all(-1)
-        shift = np.where(ok[:, None], shift, 0.0)
-        r_f, r_a = _cell_residuals(gray, curr, (flow,), p.grid, seeds, shifts=(shift,))
-        m = float(_os.environ.get("FM_ARC2M", p.photometric_margin))
-        supported = (r_a > r_f + m)[r, c] | ~ok
-        res = constraints(p_cam, arc, t0, t1, road=self.road, params=p)
-        w = p.weights; sw = sum(w)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            raw = (w[2] * np.nan_to_num(res.height) + w[3] * np.nan_to_num(res.antiparallel)) / sw
-            sig = p.threshold * np.nan_to_num(res.height) / sigma[r, c] / p.significance if p.significance > 0 else 0 * raw
-            on_arc = np.fmax(raw, sig) > p.threshold
-        out = seeds.copy()
-        out[r, c] = supported | on_arc
+        rays0 = self._rays0[r, c]
+        arc = nearest_static_ray(rays0, rays1[r, c], t0, t1)
+        at, _ = self.camera.project(arc)
+        off_arc = off_arc_supported(gray, curr, flow, p.grid, p.photometric_margin, seeds,
+                                    at - (self._centres[r, c] + cell_flow[r, c]))
+        on_arc = constraints(rays0, arc, t0, t1, road=self.road, params=p)
+        likelihood = on_arc.likelihood
+        if p.significance > 0 and sigma is not None:
+            likelihood = self._with_significance(on_arc, sigma[r, c], likelihood)
+        with np.errstate(invalid="ignore"):
+            scored = likelihood > p.threshold
+        out = off_arc.copy()
+        out[r, c] |= scored
         return out
 
     def _static_prior(self, pose_a: NDArray, pose_b: NDArray

@@ -108,6 +108,12 @@ class Params:
         explained when the static flow moved by this along either image axis explains it
         (the scene model's ranges, the road and the poses are a fraction of a pixel off, which
         on a sharp edge is tens of grey levels). 0 tests the prediction as it is.
+    photometric_arc : bool
+        A cell the static scene does not explain starts a region only if the images support
+        its deviation from the epipolar arc (moved onto the arc, the measured flow explains the
+        frames worse by more than ``photometric_margin``) or its deviations on the arc reach
+        the threshold (:mod:`fisheyemotion.photometric`): a flow error along an edge counts for
+        nothing.
     grow : int
         Cells a detected region may grow by into neighbours whose residual flow (measured minus
         the static scene's) is like the region's (:mod:`fisheyemotion.grow`): the object's flow
@@ -207,6 +213,7 @@ class Params:
     photometric_check: bool = True
     photometric_margin: float = 10.0
     photometric_tolerance: float = 0.25
+    photometric_arc: bool = True
     pose_refinement: str = "off"
     refine_tolerance: float = 0.1
     contact_ratio: float = 1.05
@@ -267,7 +274,7 @@ class Params:
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {_short(v)}")
         for name in ("depth_both_views", "fb_check", "visibility_check", "scene_prior",
-                     "ground_contact", "photometric_check"):
+                     "ground_contact", "photometric_check", "photometric_arc"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}: expected a bool, got {_short(getattr(self, name))}")
         fb = dict(self.farneback) if isinstance(self.farneback, dict) else None

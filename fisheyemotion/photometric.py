@@ -25,6 +25,14 @@ of a pixel -- and on a sharp edge a quarter of a pixel is tens of grey levels. W
 does not explain. A moving object is off its curve by its own motion, which a quarter of a
 pixel along the curve does not undo.
 
+What the images do not support counts for nothing. A cell the static scene does not explain
+is a seed only if the images also support its deviation from the epipolar arc: moved onto the
+arc (the static correspondence nearest the measured one,
+:func:`fisheyemotion.constraints.nearest_static_ray`), the measured flow must explain the frames
+worse by more than the margin (:func:`off_arc_supported`); where it does not (a flow error
+along an edge, the aperture problem), the cell counts only by its deviations on the arc (height
+and anti-parallel), which the detector scores at the moved correspondence.
+
 Two kinds of motion the check cannot see: an object moving along its epipolar line (oncoming,
 preceding) seen as static is a consistent static scene at another depth, which the static-scene
 model may hold (the anti-parallel ambiguity, :mod:`fisheyemotion.ground_contact`), and plain,
@@ -44,7 +52,7 @@ from .calib.base import CameraModel
 
 _STEP = 1e-4  # radians along the epipolar circle, either way, for its image direction
 
-__all__ = ["cell_residual", "epipolar_directions", "static_explained"]
+__all__ = ["cell_residual", "epipolar_directions", "off_arc_supported", "static_explained"]
 
 
 
@@ -153,3 +161,20 @@ def static_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
             for residual in moved[1:]:
                 explained |= left & (residual <= measured + margin)
     return explained
+
+
+def off_arc_supported(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
+                      flow: NDArray[np.float32], grid: int, margin: float,
+                      cells: NDArray[np.bool_], shift: NDArray) -> NDArray[np.bool_]:
+    """Cells ``(H // grid, W // grid)`` of ``cells`` whose measured flow explains the frames
+    better, by more than ``margin`` grey levels, than the same flow moved by ``shift``
+    (``(n, 2)`` pixels, one row per cell of ``cells`` in row-major order: onto the epipolar
+    arc, module doc). False elsewhere; True where the shift is not finite."""
+    finite = np.isfinite(shift).all(axis=-1)
+    measured, moved = _cell_residuals(prev, curr, (flow,), grid, cells,
+                                      shifts=(np.where(finite[:, None], shift, 0.0),))
+    out = np.zeros(cells.shape, bool)
+    r, c = np.nonzero(cells)
+    with np.errstate(invalid="ignore"):
+        out[r, c] = (moved[r, c] > measured[r, c] + margin) | ~finite
+    return out

@@ -298,3 +298,30 @@ def test_road_moves_with_a_change_of_world_frame():
     moved = road.transformed(t)
     point = np.array([4.0, -1.0, 0.2])  # on the road
     assert moved.height(t[:3, :3] @ point + t[:3, 3]) == pytest.approx(0.0, abs=1e-12)
+
+
+@given(ego_motions())
+def test_the_nearest_static_ray_is_a_static_point_and_leaves_static_rays_alone(case):
+    from fisheyemotion.constraints import nearest_static_ray
+
+    rng, pose0, pose1 = case
+    x = scene_points(rng, pose0)
+    p, q = rays_of(x, pose0), rays_of(x, pose1)
+    np.testing.assert_allclose(nearest_static_ray(p, q, pose0, pose1), q, atol=1e-9)
+    noisy = q + rng.normal(scale=0.05, size=q.shape)
+    noisy /= np.linalg.norm(noisy, axis=-1, keepdims=True)
+    arc = nearest_static_ray(p, noisy, pose0, pose1)
+    np.testing.assert_allclose(np.linalg.norm(arc, axis=-1), 1.0, atol=1e-12)
+    r = fm.constraints(p, arc, pose0, pose1)
+    v = r.valid
+    assert v.mean() > 0.9
+    assert np.abs(r.epipolar[v]).max() < 1e-9 and np.abs(r.depth[v]).max() < 1e-9
+    # No static ray is nearer: the arc's point is at least as near as a static point at any range.
+    c0, c1 = pose0[:3, 3], pose1[:3, 3]
+    for lam in (0.5, 2.0, 8.0, 50.0):
+        other = rays_of(c0 + lam * (p @ pose0[:3, :3].T), pose1)
+        gap_arc = np.einsum("ij,ij->i", arc, noisy)
+        gap_other = np.einsum("ij,ij->i", other, noisy)
+        assert np.all(gap_arc[v] >= gap_other[v] - 1e-12)
+    assert np.isnan(nearest_static_ray(p, q, pose0, pose0)).all()   # no baseline
+    del c1

@@ -470,3 +470,29 @@ def test_photometric_check_removes_a_flow_error_on_static_structure_and_keeps_th
     # The car's region has cells the static scene cannot explain: it stays, whole.
     assert masks[False][car].mean() > 0.5
     np.testing.assert_array_equal(masks[True] & car, masks[False] & car)
+
+
+def test_a_deviation_along_an_edge_is_not_supported_by_the_images_and_one_across_it_is():
+    """The aperture problem: along vertical stripes a flow error in v changes nothing in the
+    images, so moving it away (onto the arc) is not contradicted; a random texture contradicts."""
+    from fisheyemotion.photometric import off_arc_supported
+
+    rng = np.random.default_rng(9)
+    stripes = np.tile(cv2.GaussianBlur(rng.integers(0, 255, (1, 80), dtype=np.uint8),
+                                       (5, 1), 1.0), (60, 1))
+    texture = cv2.GaussianBlur(rng.integers(0, 255, (60, 80), dtype=np.uint8), (3, 3), 0.7)
+    cells = np.zeros((12, 16), bool)
+    cells[3:-3, 3:-3] = True
+    shift = np.tile([0.0, -2.0], (cells.sum(), 1))       # the flow's v error removed
+    for image, supported in ((stripes, False), (texture, True)):
+        curr = np.roll(image, 3, axis=1)                   # the content moved 3 px right
+        flow = np.zeros((60, 80, 2), np.float32)
+        flow[..., 0], flow[..., 1] = 3.0, 2.0              # measured: right, and 2 px down
+        if supported:                                     # the texture really moved down too
+            curr = np.roll(curr, 2, axis=0)
+        out = off_arc_supported(image, curr, flow, 5, 10.0, cells, shift)
+        assert out[cells].all() == supported and not out[~cells].any()
+    nan_shift = shift.copy()
+    nan_shift[0] = np.nan                                 # no arc there: counts as supported
+    out = off_arc_supported(stripes, np.roll(stripes, 3, axis=1), flow, 5, 10.0, cells, nan_shift)
+    assert out[3, 3] and not out[cells].all()
