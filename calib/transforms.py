@@ -93,6 +93,16 @@ def invert_transform(transform: ArrayLike) -> NDArray[np.float64]:
     return make_transform(r.T, -r.T @ t[:3, 3])
 
 
+def mean_rotation(rotations: NDArray) -> NDArray[np.float64]:
+    """The chordal L2 mean of rotations ``(N, 3, 3)``: the rotation nearest (Frobenius) to their
+    arithmetic mean, by SVD. Within a few degrees of each other it is their geodesic mean to
+    second order."""
+    u, _, vt = np.linalg.svd(np.mean(rotations, axis=0))
+    d = np.sign(np.linalg.det(u @ vt))
+    return u @ np.diag([1.0, 1.0, d]) @ vt
+
+
+
 def interpolate_transform(a: ArrayLike, b: ArrayLike, weight: float) -> NDArray[np.float64]:
     """The rigid transform ``weight`` of the way from ``a`` to ``b`` (4x4 each).
 

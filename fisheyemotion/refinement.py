@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .calib.base import CameraModel
-from .calib.transforms import make_transform, rotation_angle, vector_angle
+from .calib.transforms import make_transform, mean_rotation, rotation_angle, vector_angle
 from .egomotion import PoseTracker
 
 __all__ = ["ANCHOR_FRAMES", "DIRECTION_TOLERANCE", "PoseRefiner"]
@@ -39,15 +39,6 @@ __all__ = ["ANCHOR_FRAMES", "DIRECTION_TOLERANCE", "PoseRefiner"]
 DIRECTION_TOLERANCE = 5.0
 #: Frames over which the given poses' absolute pose is averaged into the anchor.
 ANCHOR_FRAMES = 30
-
-
-def mean_rotation(rotations: NDArray) -> NDArray[np.float64]:
-    """The chordal L2 mean of rotations ``(N, 3, 3)``: the rotation nearest (Frobenius) to their
-    arithmetic mean, by SVD. Within a few degrees of each other it is their geodesic mean to
-    second order."""
-    u, _, vt = np.linalg.svd(np.mean(rotations, axis=0))
-    d = np.sign(np.linalg.det(u @ vt))
-    return u @ np.diag([1.0, 1.0, d]) @ vt
 
 
 class PoseRefiner:

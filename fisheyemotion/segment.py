@@ -47,7 +47,7 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
     age : ndarray of int, shape (rows, cols), optional
         Consecutive detections each cell has been moving in (streams).
     seed_threshold : float
-        Hysteresis: a region is kept only if one of its cells exceeds this.
+        Hysteresis: a region (8-connected) is kept only if one of its cells exceeds this.
     extend_threshold : float
         Below ``threshold``: each region kept (of ``min_area`` cells above ``threshold``) is
         extended to the cells above this connected to it (8-connected) through such cells: a
@@ -64,8 +64,9 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
     """
     values = np.nan_to_num(cell_likelihood, nan=0.0)
     if seed_threshold > threshold:  # hysteresis: regions need a cell above the seed threshold
-        from skimage.filters import apply_hysteresis_threshold  # scikit-image on first use
-        moving = apply_hysteresis_threshold(values, threshold, seed_threshold)
+        # 8-connected, as the regions are (scikit-image's hysteresis joins 4-connected cells
+        # only, which split a region at a diagonal step).
+        moving = _extended(values > seed_threshold, values > threshold)
     else:
         moving = values > threshold
     if 0 < extend_threshold < threshold:

@@ -253,6 +253,10 @@ def test_hysteresis_keeps_only_regions_with_a_strong_cell():
     assert mask[6:9, 6:10].all() and not mask[1:4, 1:4].any()
     same, _ = segment_cells(cells, threshold=0.004, grid=5, min_area=0, seed_threshold=0.004)
     np.testing.assert_array_equal(same, plain)
+    # A region is 8-connected: a weak cell diagonal to the strong region belongs to it.
+    cells[9, 10] = 0.006
+    mask, regions = segment_cells(cells, threshold=0.004, grid=5, min_area=0, seed_threshold=0.01)
+    assert mask[9, 10] and len(regions) == 1 and regions[0].area == 13 * 25
 
 
 @pytest.mark.parametrize("seed", range(6))

@@ -183,7 +183,7 @@ def test_pose_refinement_takes_the_direction_of_travel_from_the_images_and_the_l
 def test_refined_poses_average_the_given_orientations_errors_not_keep_the_first(frames):
     """The stream's refined pose (its anchor times its chain) is off the truth by about the
     mean of the given poses' errors so far, not by the first given pose's error."""
-    from fisheyemotion.refinement import mean_rotation
+    from fisheyemotion.calib.transforms import mean_rotation
 
     from .scenes import rotation
 

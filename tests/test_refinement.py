@@ -4,12 +4,15 @@ rotations (the anchor), against SciPy and by their defining properties."""
 from __future__ import annotations
 
 import numpy as np
-from fisheyemotion.calib.transforms import interpolate_transform, make_transform, rotation_angle
+from fisheyemotion.calib.transforms import (
+    interpolate_transform,
+    make_transform,
+    mean_rotation,
+    rotation_angle,
+)
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation, Slerp
-
-from fisheyemotion.refinement import mean_rotation
 
 from .scenes import random_rotation, rotation
 
