@@ -173,7 +173,9 @@ def nearest_static_ray(rays0: NDArray[np.float64], rays1: NDArray[np.float64], p
         return np.full(p.shape, np.nan)
     e = baseline / b
     q = rays1 @ r1.T
-    n = _unit(np.cross(p, e))
+    # p x e' by components (np.cross costs 10x more on arrays this small; the same products).
+    n = _unit(np.stack([p[:, 1] * e[2] - p[:, 2] * e[1], p[:, 2] * e[0] - p[:, 0] * e[2],
+                        p[:, 0] * e[1] - p[:, 1] * e[0]], axis=-1))
     u = _unit(q - np.sum(q * n, axis=-1, keepdims=True) * n)
     k = np.sum(p * e, axis=-1, keepdims=True)
     ue = np.sum(u * e, axis=-1, keepdims=True)
