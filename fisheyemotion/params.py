@@ -287,8 +287,9 @@ class Params:
 
     @classmethod
     def paper(cls, **changes: Any) -> Params:
-        """The paper's pipeline: Farneback on consecutive frames, no ego prior, no visibility,
-        forward-backward or texture check (the defaults add some of these, as chosen by
+        """The paper's pipeline: Farneback on consecutive frames, no ego prior or scene model, no
+        visibility, forward-backward, texture or photometric check, raw angles (no
+        significance), no ground-contact test (the defaults add some of these, as chosen by
         ``docs/evaluation.md``). The paper does not state its likelihood threshold; this uses
         0.005."""
         return cls(**{"flow_prior": "none", "scene_prior": False, "ground_contact": False,
