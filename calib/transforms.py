@@ -102,7 +102,6 @@ def mean_rotation(rotations: NDArray) -> NDArray[np.float64]:
     return u @ np.diag([1.0, 1.0, d]) @ vt
 
 
-
 def interpolate_transform(a: ArrayLike, b: ArrayLike, weight: float) -> NDArray[np.float64]:
     """The rigid transform ``weight`` of the way from ``a`` to ``b`` (4x4 each).
 

@@ -104,10 +104,11 @@ class Params:
         Grey levels by which the static scene's mean absolute difference may exceed the
         measured flow's for a cell to count as explained.
     photometric_tolerance : float
-        Pixels by which the static scene's prediction may be off: a cell also counts as
-        explained when the static flow moved by this along either image axis explains it
-        (the scene model's ranges, the road and the poses are a fraction of a pixel off, which
-        on a sharp edge is tens of grey levels). 0 tests the prediction as it is.
+        Pixels by which the static scene's prediction may be off along the cell's epipolar
+        curve: a cell also counts as explained when the static flow moved by this either way
+        along it explains it (the scene model's ranges, the road and the step length are a few
+        per cent off, which moves the prediction only along that curve and, on a sharp edge,
+        by tens of grey levels). 0 tests the prediction as it is.
     photometric_arc : bool
         A cell the static scene does not explain starts a region only if the images support
         its deviation from the epipolar arc (moved onto the arc, the measured flow explains the

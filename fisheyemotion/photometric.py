@@ -55,7 +55,6 @@ _STEP = 1e-4  # radians along the epipolar circle, either way, for its image dir
 __all__ = ["cell_residual", "epipolar_directions", "off_arc_supported", "static_explained"]
 
 
-
 def cell_residual(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArray[np.float32],
                   grid: int, cells: NDArray[np.bool_] | None = None) -> NDArray[np.float32]:
     """Mean absolute grey-level difference ``|prev(u) - curr(u + flow(u))|`` of each cell
