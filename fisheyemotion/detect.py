@@ -38,7 +38,12 @@ from .ground import GroundEstimator, provisional_road
 from .ground_contact import standing_regions
 from .grow import grow_regions
 from .params import Params
-from .photometric import epipolar_directions, off_arc_supported, static_explained
+from .photometric import (
+    cell_residual,
+    epipolar_directions,
+    off_arc_supported,
+    static_explained,
+)
 from .prior import EgoFlowPrior, lands_on, static_scene_targets
 from .refinement import PoseRefiner
 from .road import Road
@@ -463,21 +468,22 @@ class MotionDetector:
                 at = self._centres[r, c] + static_flow[r * p.grid + centre, c * p.grid + centre]
                 return epipolar_directions(self.camera, at, t0, t1)
 
+            measured = cell_residual(gray, curr, flow, p.grid, above)  # shared by both tests
             seeds = above & ~static_explained(gray, curr, flow, static_flow, p.grid,
                                               p.photometric_margin, cells=above,
                                               tolerance=p.photometric_tolerance,
-                                              directions=along)
+                                              directions=along, measured=measured)
             if p.photometric_arc and seeds.any() and not res.static_camera:
                 seeds &= self._supported_off_arc(seeds, flow, cell_flow, rays1, t0, t1, gray,
-                                                 curr, sigma)
+                                                 curr, sigma, measured)
         if p.grow > 0 and not res.static_camera:
             likelihood = self._grown(likelihood, valid, cell_flow, t0, t1)
         self._check_road(t0)
         return self._assemble(flow, cell_flow, res, likelihood, valid, stream=stream,
                               seeds=seeds)
 
-    def _supported_off_arc(self, seeds, flow, cell_flow, rays1, t0, t1, gray, curr, sigma
-                           ) -> NDArray[np.bool_]:
+    def _supported_off_arc(self, seeds, flow, cell_flow, rays1, t0, t1, gray, curr, sigma,
+                           measured) -> NDArray[np.bool_]:
         """The seed cells whose evidence the images support (:mod:`fisheyemotion.photometric`):
         their deviation from the epipolar arc, or else their likelihood at the static
         correspondence nearest the measured one (on the arc: the height and anti-parallel
@@ -488,7 +494,7 @@ class MotionDetector:
         arc = nearest_static_ray(rays0, rays1[r, c], t0, t1)
         at, _ = self.camera.project(arc)
         off_arc = off_arc_supported(gray, curr, flow, p.grid, p.photometric_margin, seeds,
-                                    at - (self._centres[r, c] + cell_flow[r, c]))
+                                    at - (self._centres[r, c] + cell_flow[r, c]), measured)
         on_arc = constraints(rays0, arc, t0, t1, road=self.road, params=p)
         likelihood = on_arc.likelihood
         if p.significance > 0 and sigma is not None:

@@ -75,26 +75,24 @@ def cell_residual(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArra
     """
     if cells is None:
         cells = np.ones((prev.shape[0] // grid, prev.shape[1] // grid), bool)
-    return _cell_residuals(prev, curr, (flow,), grid, cells)[0]
+    return _cell_residuals(prev, curr, flow, grid, cells, (None,))[0]
 
 
-def _cell_residuals(prev, curr, flows, grid, cells, shifts=()) -> list[NDArray[np.float32]]:
-    """:func:`cell_residual` of ``cells`` for each of ``flows``, then for the last flow moved
-    by each of ``shifts`` (``(n, 2)`` pixels, one row per cell of ``cells`` in row-major
-    order)."""
+def _cell_residuals(prev, curr, flow, grid, cells, shifts) -> list[NDArray[np.float32]]:
+    """:func:`cell_residual` of ``cells`` for ``flow`` moved by each of ``shifts`` (``(n, 2)``
+    pixels, one row per cell of ``cells`` in row-major order; None: not moved)."""
     from ._grid_kernels import block_residuals  # numba on first use: a light import
 
-    outs = [np.full(cells.shape, np.nan, np.float32) for _ in (*flows, *shifts)]
+    outs = [np.full(cells.shape, np.nan, np.float32) for _ in shifts]
     r, c = np.nonzero(cells)
     if len(r) == 0:
         return outs
     values = np.empty(len(r))
-    none = np.zeros((len(r), 2))
     prev, curr = np.ascontiguousarray(prev), np.ascontiguousarray(curr)
-    jobs = [(flow, none) for flow in flows] + [(flows[-1], s) for s in shifts]
-    for out, (flow, shift) in zip(outs, jobs, strict=True):
-        block_residuals(prev, curr, np.ascontiguousarray(flow, np.float32), r, c, int(grid),
-                        np.ascontiguousarray(shift, np.float64), values)
+    flow = np.ascontiguousarray(flow, np.float32)
+    for out, shift in zip(outs, shifts, strict=True):
+        shift = np.zeros((len(r), 2)) if shift is None else np.ascontiguousarray(shift, np.float64)
+        block_residuals(prev, curr, flow, r, c, int(grid), shift, values)
         out[r, c] = values
     return outs
 
@@ -139,39 +137,46 @@ def static_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
                      flow: NDArray[np.float32], static_flow: NDArray[np.float32], grid: int,
                      margin: float, cells: NDArray[np.bool_] | None = None,
                      tolerance: float = 0.0,
-                     directions: Callable[[NDArray[np.bool_]], NDArray] | None = None
-                     ) -> NDArray[np.bool_]:
+                     directions: Callable[[NDArray[np.bool_]], NDArray] | None = None,
+                     measured: NDArray[np.float32] | None = None) -> NDArray[np.bool_]:
     """Cells ``(H // grid, W // grid)`` where the static scene's flow explains the frames within
     ``margin`` grey levels of the measured flow, or the same moved by ``tolerance`` pixels
     either way along ``directions(cells)`` (``(n, 2)`` unit image directions of the ``n``
     cells still unexplained, row-major; NaN: no such test) does (module doc). With ``cells``
-    only those are tested (False elsewhere); without, every whole cell.
+    only those are tested (False elsewhere); without, every whole cell. ``measured``: the
+    measured flow's :func:`cell_residual` at those cells, if the caller has it.
     """
     if cells is None:
         cells = np.ones((prev.shape[0] // grid, prev.shape[1] // grid), bool)
-    measured, static = _cell_residuals(prev, curr, (flow, static_flow), grid, cells)
+    if measured is None:
+        measured = cell_residual(prev, curr, flow, grid, cells)
+    static = cell_residual(prev, curr, static_flow, grid, cells)
     with np.errstate(invalid="ignore"):
         explained = static <= measured + margin
     left = cells & ~explained
     if tolerance > 0 and directions is not None and left.any():
         shift = np.nan_to_num(tolerance * np.asarray(directions(left), np.float64))
-        moved = _cell_residuals(prev, curr, (static_flow,), grid, left, shifts=(shift, -shift))
+        moved = _cell_residuals(prev, curr, static_flow, grid, left, (shift, -shift))
         with np.errstate(invalid="ignore"):
-            for residual in moved[1:]:
+            for residual in moved:
                 explained |= left & (residual <= measured + margin)
     return explained
 
 
 def off_arc_supported(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
                       flow: NDArray[np.float32], grid: int, margin: float,
-                      cells: NDArray[np.bool_], shift: NDArray) -> NDArray[np.bool_]:
+                      cells: NDArray[np.bool_], shift: NDArray,
+                      measured: NDArray[np.float32] | None = None) -> NDArray[np.bool_]:
     """Cells ``(H // grid, W // grid)`` of ``cells`` whose measured flow explains the frames
     better, by more than ``margin`` grey levels, than the same flow moved by ``shift``
     (``(n, 2)`` pixels, one row per cell of ``cells`` in row-major order: onto the epipolar
-    arc, module doc). False elsewhere; True where the shift is not finite."""
+    arc, module doc). False elsewhere; True where the shift is not finite. ``measured``: the
+    flow's :func:`cell_residual` at ``cells``, if the caller has it."""
     finite = np.isfinite(shift).all(axis=-1)
-    measured, moved = _cell_residuals(prev, curr, (flow,), grid, cells,
-                                      shifts=(np.where(finite[:, None], shift, 0.0),))
+    if measured is None:
+        measured = cell_residual(prev, curr, flow, grid, cells)
+    moved = _cell_residuals(prev, curr, flow, grid, cells,
+                            (np.where(finite[:, None], shift, 0.0),))[0]
     out = np.zeros(cells.shape, bool)
     r, c = np.nonzero(cells)
     with np.errstate(invalid="ignore"):
