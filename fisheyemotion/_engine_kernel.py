@@ -23,9 +23,11 @@ _UNIT_TOLERANCE = 4e-16
 @numba.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract", "nsz", "arcp"})
 def constraint_kernel(p_cam, q_cam, r0, r1, e, b, down, eta, lambda_h, lambda_p, adaptive,
                       lambda_p_ratio, both_views, epipole_margin, horizon_margin, weights, out,
-                      valid):
+                      valid, arc):
     """Fill ``out`` (5, N): xi_e, xi_d, xi_h, xi_p, likelihood (NaN where invalid), and
-    ``valid`` (N,).
+    ``valid`` (N,); and, if ``arc`` is (N, 3) rather than (0, 3), the nearest static ray: ``u``
+    clamped to the arc from ``e'`` to ``p``, in the current camera's frame (NaN where ``u`` is
+    undefined).
 
     ``p_cam``, ``q_cam``: (N, 3) rays in their camera frames; ``r0``, ``r1``: world_from_cam
     rotations; ``e``: unit vector from the current to the previous centre, ``b`` the baseline;
@@ -33,6 +35,7 @@ def constraint_kernel(p_cam, q_cam, r0, r1, e, b, down, eta, lambda_h, lambda_p,
     """
     nan = np.nan
     inv_mu = 1.0 / (weights[0] + weights[1] + weights[2] + weights[3])
+    with_arc = arc.shape[0] == p_cam.shape[0]
     for i in range(p_cam.shape[0]):
         # Rays in the world frame, unit length.
         px = r0[0, 0] * p_cam[i, 0] + r0[0, 1] * p_cam[i, 1] + r0[0, 2] * p_cam[i, 2]
@@ -60,6 +63,8 @@ def constraint_kernel(p_cam, q_cam, r0, r1, e, b, down, eta, lambda_h, lambda_p,
             for j in range(5):
                 out[j, i] = nan
             valid[i] = False
+            if with_arc:
+                arc[i, 0] = arc[i, 1] = arc[i, 2] = nan
             continue
         inv_s = 1.0 / s
         nx, ny, nz = nx * inv_s, ny * inv_s, nz * inv_s
@@ -70,6 +75,7 @@ def constraint_kernel(p_cam, q_cam, r0, r1, e, b, down, eta, lambda_h, lambda_p,
         xi_p = 0.0
         ux, uy, uz = qx - qdn * nx, qy - qdn * ny, qz - qdn * nz
         ul = math.sqrt(ux * ux + uy * uy + uz * uz)
+        wx = wy = wz = nan  # the nearest static ray, world frame
         if ul > _DEGENERATE:
             inv_ul = 1.0 / ul
             ux, uy, uz = ux * inv_ul, uy * inv_ul, uz * inv_ul
@@ -78,6 +84,12 @@ def constraint_kernel(p_cam, q_cam, r0, r1, e, b, down, eta, lambda_h, lambda_p,
             up = ux * px + uy * py + uz * pz
             a = (ue - k * up) * inv_s * inv_s  # u = a e' + c p
             c = (up - k * ue) * inv_s * inv_s
+            if a < 0.0:  # beyond p: the point at infinity
+                wx, wy, wz = px, py, pz
+            elif c < 0.0:  # beyond e': the point at the previous centre
+                wx, wy, wz = e[0], e[1], e[2]
+            else:
+                wx, wy, wz = ux, uy, uz
             if a < 0.0:  # behind the current camera: |u x p|
                 cx_ = uy * pz - uz * py
                 cy_ = uz * px - ux * pz
@@ -111,6 +123,9 @@ def constraint_kernel(p_cam, q_cam, r0, r1, e, b, down, eta, lambda_h, lambda_p,
                         wz = rx * py - ry * px
                         lp = lambda_p_ratio * math.sqrt(wx * wx + wy * wy + wz * wz) / rl
                     xi_p = max(dev - lp, 0.0)
+        if with_arc:  # r1^T w: into the current camera's frame
+            for j in range(3):
+                arc[i, j] = r1[0, j] * wx + r1[1, j] * wy + r1[2, j] * wz
         out[0, i] = xi_e
         out[1, i] = xi_d
         out[2, i] = xi_h

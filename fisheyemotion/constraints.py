@@ -62,6 +62,9 @@ class ConstraintResult:
     static_camera: bool
 
 
+_NO_ARC = np.empty((0, 3))  # constraint_kernel's arc output, not wanted
+
+
 def _unit(v: NDArray[np.float64]) -> NDArray[np.float64]:
     with np.errstate(invalid="ignore", divide="ignore"):
         return v / np.linalg.norm(v, axis=-1, keepdims=True)
@@ -137,7 +140,7 @@ def constraints(
         params.lambda_h,
         params.lambda_p, params.lambda_p_mode == "adaptive", params.lambda_p_ratio,
         params.depth_both_views, params.epipole_margin, params.horizon_margin,
-        np.asarray(params.weights, dtype=np.float64), out, valid)
+        np.asarray(params.weights, dtype=np.float64), out, valid, _NO_ARC)
     xi_e, xi_d, xi_h, xi_p, likelihood = (x.reshape(shape) for x in out)
     return ConstraintResult(xi_e, xi_d, xi_h, xi_p, likelihood, valid.reshape(shape),
                             static_camera=False)
@@ -147,7 +150,8 @@ def nearest_static_ray(rays0: NDArray[np.float64], rays1: NDArray[np.float64], p
                        pose1: NDArray) -> NDArray[np.float64]:
     """The current ray of a static point nearest to ``rays1``: ``p'`` projected onto its
     epipolar circle and clamped to the arc from ``e'`` (``lambda -> 0``) to ``p``
-    (``lambda -> inf``) of the module doc, in the current camera's frame.
+    (``lambda -> inf``) of the module doc, in the current camera's frame (the engine kernel's
+    decomposition ``u = a e' + c p``: ``a < 0`` gives ``p``, ``c < 0`` gives ``e'``).
 
     Its epipolar and depth deviations are 0; its height and anti-parallel ones are those of the
     static point at that range.
@@ -163,27 +167,23 @@ def nearest_static_ray(rays0: NDArray[np.float64], rays1: NDArray[np.float64], p
     -------
     ndarray of float64, shape (n, 3)
         Unit rays; NaN where the epipolar plane is undefined (``p`` along ``e'``, or no
-        baseline).
+        baseline) or ``p'`` is normal to it.
     """
-    r0, r1 = pose0[:3, :3], pose1[:3, :3]
+    p_flat = np.ascontiguousarray(rays0, dtype=np.float64)
+    arc = np.full(p_flat.shape, np.nan)
     baseline = pose0[:3, 3] - pose1[:3, 3]
     b = float(np.linalg.norm(baseline))
-    p = rays0 @ r0.T
-    if not b > 0:
-        return np.full(p.shape, np.nan)
-    e = baseline / b
-    q = rays1 @ r1.T
-    # p x e' by components (np.cross costs 10x more on arrays this small; the same products).
-    n = _unit(np.stack([p[:, 1] * e[2] - p[:, 2] * e[1], p[:, 2] * e[0] - p[:, 0] * e[2],
-                        p[:, 0] * e[1] - p[:, 1] * e[0]], axis=-1))
-    u = _unit(q - np.sum(q * n, axis=-1, keepdims=True) * n)
-    k = np.sum(p * e, axis=-1, keepdims=True)
-    ue = np.sum(u * e, axis=-1, keepdims=True)
-    up = np.sum(u * p, axis=-1, keepdims=True)
-    with np.errstate(invalid="ignore"):
-        # u = (a e' + c p) (1 - k^2)^-1 with a = ue - k up, c = up - k ue: only the signs count.
-        u = np.where(ue - k * up < 0, p, np.where(up - k * ue < 0, e, u))
-    return u @ r1
+    if not b > 0 or len(p_flat) == 0:
+        return arc
+    from ._engine_kernel import constraint_kernel  # numba on first use: a light import
+
+    # Only the arc is wanted: no road (eta 0), no dead bands, no epipole margin.
+    constraint_kernel(
+        p_flat, np.ascontiguousarray(rays1, dtype=np.float64),
+        np.ascontiguousarray(pose0[:3, :3]), np.ascontiguousarray(pose1[:3, :3]),
+        baseline / b, b, np.array([0.0, 0.0, -1.0]), 0.0, 0.0, 0.0, False, 0.0, True, 0.0, 0.0,
+        np.ones(4), np.empty((5, len(p_flat))), np.empty(len(p_flat), dtype=bool), arc)
+    return arc
 
 
 def _result(xi_e, xi_d, xi_h, xi_p, likelihood, valid, *, static: bool,
