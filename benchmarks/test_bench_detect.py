@@ -131,9 +131,12 @@ def test_render_peer_farneback(benchmark, frames):
 @pytest.mark.benchmark(group="stream-640x480")
 @pytest.mark.parametrize("threads", [1, 2], ids=["1t", "2t"])
 @pytest.mark.parametrize("name", ["dis-ultrafast", "farneback"])
-def test_stream_640x480(benchmark, frames, name, threads):
-    """``MotionDetector.apply`` with ``Params()`` as a user streams it: frames per second
-    (extra_info) over the frames after the gap and the scene model have filled."""
+@pytest.mark.parametrize("api", ["apply", "stream"])
+def test_stream_640x480(benchmark, frames, name, threads, api):
+    """``Params()`` as a user streams it, frame by frame with ``MotionDetector.apply`` or with
+    ``MotionDetector.stream`` (each pair's decision beside the next pair's flow, in a second
+    Python thread): frames per second (extra_info) over the frames after the gap and the scene
+    model have filled."""
     fr, roi = frames
     grays = [_gray(f) for f in fr]
     half = STREAM_FRAMES // 2
@@ -145,6 +148,10 @@ def test_stream_640x480(benchmark, frames, name, threads):
         return (det,), {}
 
     def run(det):
+        if api == "stream":
+            for _ in det.stream((grays[k], fr[k].pose) for k in range(half, STREAM_FRAMES)):
+                pass
+            return
         for k in range(half, STREAM_FRAMES):
             det.apply(grays[k], fr[k].pose)
 

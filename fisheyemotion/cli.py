@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import re
 import sys
+from collections import deque
 from collections.abc import Sequence
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -124,18 +125,32 @@ def run_detect(frames, camera: calib.CameraModel, matcher, out: Path, *,
     video = _VideoSink(out / "annotated.mp4", fps) if write_video else None
     rows, stamps, used = [], [], []
     total = len(frames) or None
-    # Frames are read ahead and outputs written behind in two threads, overlapping the detection.
-    with BackgroundWriter() as background:
+    fed: deque = deque()  # (frame, name, its pose's stamp) of the frames given to the stream
+
+    def items():
         for frame in tqdm(read_ahead(frames), desc="detect", total=total, disable=not progress,
                           leave=False):
             name = Path(frame.name).stem if frame.name else f"{frame.index:06d}"
+            fed.append((frame, name, None))
+            stamp, pose = (None, None) if matcher is None else matcher(
+                frame.index, frame.name, frame.stamp)
+            fed[-1] = (frame, name, stamp)
+            yield frame.image, pose
+
+    # Frames are read ahead and outputs written behind in two threads; the detector's stream
+    # decides one frame pair's result while it measures the next pair's flow.
+    results = detector.stream(items())
+    with BackgroundWriter() as background:
+        while True:
             try:
-                stamp, pose = (None, None) if matcher is None else matcher(
-                    frame.index, frame.name, frame.stamp)
-                result = detector.apply(frame.image, pose)
-                pose = detector.last_pose
-            except ValueError as exc:
+                result = next(results)
+            except StopIteration:
+                break
+            except ValueError as exc:  # raised while the newest frame was taken in
+                frame, name, _ = fed[-1]
                 raise CliError(f"frame {frame.index} ({name}): {exc}") from None
+            frame, name, stamp = fed.popleft()
+            pose = detector.last_pose
             stamp = frame.stamp if frame.stamp is not None else stamp
             stamps.append(frame.index if stamp is None else stamp)
             used.append(pose)

@@ -8,11 +8,13 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import threading
 import warnings
 from collections import OrderedDict, deque
-from collections.abc import Mapping
+from collections.abc import Iterable, Iterator, Mapping
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -84,6 +86,26 @@ class Grid(NamedTuple):
     flow: NDArray[np.float64]
     likelihood: NDArray[np.float64]
     valid: NDArray[np.bool_]
+
+
+class _Measured(NamedTuple):
+    """A frame pair between :meth:`MotionDetector._measure` and ``_decide``."""
+
+    flow: NDArray[np.float32]
+    cell_flow: NDArray[np.float64]
+    res: ConstraintResult
+    likelihood: NDArray[np.float64]
+    valid: NDArray[np.bool_]
+    rays1: NDArray[np.float64]
+    t0: NDArray[np.float64]
+    t1: NDArray[np.float64]
+    gray: NDArray[np.uint8] | None
+    curr: NDArray[np.uint8] | None
+    sigma: NDArray[np.float64] | None
+    static_flow: NDArray[np.float32] | None
+    road: Road
+    prior_road: Road | None  # the road of the pair's prior, where the growth needs it
+    stream: bool
 
 
 class LazyMaps(Mapping):
@@ -257,6 +279,94 @@ class MotionDetector:
         frame, the scale unknown, and the road terms off (``Road.unknown()``, said once as a
         warning). :attr:`last_pose` is the pose used.
         """
+        pair = self._take(frame, pose)
+        if pair is None:
+            return None
+        result = self._detect_gray(*pair, stream=True)
+        self._last_mask = result.mask > 0
+        return result
+
+    def stream(self, items: Iterable[tuple[NDArray[np.uint8], NDArray | None]]
+               ) -> Iterator[Detection | None]:
+        """:meth:`apply` over ``(frame, pose)`` items: one result per item, in order, the same
+        results as ``apply`` gives, on two cores.
+
+        While one frame pair's result is decided (the photometric check, the transfer to the
+        current frame, the temporal filter, the segmentation) in a second thread, the next
+        pair's flow is computed: it needs only the static-scene model, which the pair updated
+        before its decision. Both threads spend most of their time in OpenCV and in numba
+        kernels, which release the GIL. Streams whose next pose depends on the last mask
+        (``pose=None``, or ``params.pose_refinement`` not ``off``) run one frame after the
+        other, as ``apply``. After each result is yielded, :attr:`last_pose` is its pose. A
+        refused frame or pose raises ``ValueError`` after the results of the frames before it;
+        a consumer that leaves early has had one frame more taken in than it was given results
+        for: that frame is detected on leaving, unseen, so the detector goes on as ``apply``
+        would after the same frames.
+
+        >>> for result in detector.stream(zip(frames, poses)):
+        ...     if result is not None:
+        ...         cv2.imshow("moving", result.mask)
+        """
+        pending: tuple[Future, NDArray] | None = None  # the decision under way, its pose
+        taken = None  # a pair whose flow is measured, until its own decision is under way
+
+        def finish(job: tuple[Future, NDArray]) -> Detection:
+            result = job[0].result()
+            self._last_mask, self.last_pose = result.mask > 0, job[1]
+            return result
+
+        def measure(flow, backward, g0, g1, t0, t1) -> _Measured:
+            return self._measure(flow, t0, t1, backward, g0, curr=g1, stream=True)
+
+        with ThreadPoolExecutor(max_workers=1, thread_name_prefix="fisheyemotion-decide") as pool:
+            try:
+                items = iter(items)
+                while True:
+                    try:
+                        frame, pose = next(items)
+                        if pending is not None and (pose is None or self._tracker is not None
+                                                    or self.params.pose_refinement != "off"):
+                            job, pending = pending, None  # this pose needs the last mask
+                            yield finish(job)
+                        pair = self._take(frame, pose)
+                    except StopIteration:
+                        break
+                    except Exception:  # a refused frame or pose: the results before it first
+                        if pending is not None:
+                            job, pending = pending, None
+                            yield finish(job)
+                        raise
+                    world = self.last_pose
+                    if pair is not None:
+                        taken = (*self._pair_flow(*pair), *pair), world  # beside the decision
+                    if pending is not None:
+                        job, pending = pending, None
+                        yield finish(job)
+                    self.last_pose = world
+                    if pair is None:  # the frame gap is filling
+                        yield None
+                        continue
+                    pending = (pool.submit(self._decide, measure(*taken[0])), world)
+                    taken = None
+                if pending is not None:
+                    job, pending = pending, None
+                    yield finish(job)
+            finally:
+                # Left early (or failing): the frames taken in still update the detector as
+                # apply() would, their results unseen.
+                with contextlib.suppress(Exception):
+                    if pending is not None:
+                        finish(pending)
+                    if taken is not None:
+                        result = self._decide(measure(*taken[0]))
+                        self._last_mask, self.last_pose = result.mask > 0, taken[1]
+
+    def _take(self, frame: NDArray[np.uint8], pose: NDArray | None
+              ) -> tuple[NDArray[np.uint8], NDArray[np.uint8], NDArray, NDArray] | None:
+        """:meth:`apply`'s bookkeeping of a new frame: its gray image, its pose (checked, or
+        estimated, or refined and anchored: :attr:`last_pose`), the road's observation and the
+        frame history. Returns the pair to detect, ``(prev, curr, pose0, pose1)``, or None
+        while the frame gap fills."""
         gray = to_gray(frame, "frame", size=self.size)
         anchor = None  # world_from_chain of refined poses: one for both poses of a pair
         if pose is None:
@@ -281,10 +391,7 @@ class MotionDetector:
         self._history.append((gray, t))
         if prev is None:
             return None
-        result = self._detect_gray(prev, gray, prev_pose if anchor is None else anchor @ prev_pose,
-                                   world, stream=True)
-        self._last_mask = result.mask > 0
-        return result
+        return prev, gray, prev_pose if anchor is None else anchor @ prev_pose, world
 
     def _estimated_pose(self, gray: NDArray[np.uint8]) -> NDArray[np.float64]:
         if self._tracker is None:
@@ -368,12 +475,15 @@ class MotionDetector:
         residual += prior
         return residual
 
-    def _detect_gray(self, g0, g1, t0, t1, *, stream: bool = False) -> Detection:
+    def _pair_flow(self, g0, g1, t0, t1) -> tuple[NDArray[np.float32], NDArray | None]:
+        """The pair's flow, and the backward one where ``params.fb_check`` asks for it."""
         if self.params.fb_check:
-            forward, backward = self.flow(g0, g1, t0, t1, backward=True)
-            return self._from_flow(forward, t0, t1, backward, g0, curr=g1, stream=stream)
-        return self._from_flow(self.flow(g0, g1, t0, t1), t0, t1, None, g0, curr=g1,
-                               stream=stream)
+            return self.flow(g0, g1, t0, t1, backward=True)
+        return self.flow(g0, g1, t0, t1), None
+
+    def _detect_gray(self, g0, g1, t0, t1, *, stream: bool = False) -> Detection:
+        flow, backward = self._pair_flow(g0, g1, t0, t1)
+        return self._from_flow(flow, t0, t1, backward, g0, curr=g1, stream=stream)
 
     def _resolvable_cells(self, t0: NDArray, t1: NDArray, *, parallax: bool) -> NDArray[np.bool_]:
         """Cells the static-scene prediction says can be scored: its point is seen in the current
@@ -415,6 +525,13 @@ class MotionDetector:
 
     def _from_flow(self, flow, t0, t1, backward=None, gray=None, *, curr=None,
                    stream=False) -> Detection:
+        return self._decide(self._measure(flow, t0, t1, backward, gray, curr=curr,
+                                          stream=stream))
+
+    def _measure(self, flow, t0, t1, backward=None, gray=None, *, curr=None,
+                 stream=False) -> _Measured:
+        """A pair's cells scored, up to the static-scene model's update: what the next pair's
+        flow prior needs (:meth:`stream` computes that flow while :meth:`_decide` runs)."""
         p = self.params
         cell_flow = grid_average(flow, p.grid)
         rays1, valid1 = self.camera.unproject(self._centres + cell_flow)
@@ -456,6 +573,17 @@ class MotionDetector:
                     conditioned = parallax >= np.sin(TRIANGULATION_PARALLAX)
                     self.scene.add(self._rays0, np.where(conditioned, ranges, np.nan), t0,
                                    valid & (likelihood < p.threshold))
+        return _Measured(flow, cell_flow, res, likelihood, valid, rays1, t0, t1, gray, curr,
+                         sigma, static_flow, self.road,
+                         self._prior_road(t0, t1) if p.grow > 0 else None, stream)
+
+    def _decide(self, m: _Measured) -> Detection:
+        """A measured pair's result: the photometric check's seeds, the growth and the
+        result on the current frame. Reads nothing of the detector that the next pair's flow
+        changes (the road is the one the pair was measured with)."""
+        p = self.params
+        flow, cell_flow, res, likelihood, valid = m.flow, m.cell_flow, m.res, m.likelihood, m.valid
+        t0, t1, gray, curr, static_flow = m.t0, m.t1, m.gray, m.curr, m.static_flow
         seeds = None
         if static_flow is not None:
             # A region is reported only if one of its cells (above the threshold: only they
@@ -474,16 +602,16 @@ class MotionDetector:
                                               tolerance=p.photometric_tolerance,
                                               directions=along, measured=measured)
             if p.photometric_arc and seeds.any() and not res.static_camera:
-                seeds &= self._supported_off_arc(seeds, flow, cell_flow, rays1, t0, t1, gray,
-                                                 curr, sigma, measured)
+                seeds &= self._supported_off_arc(seeds, flow, cell_flow, m.rays1, t0, t1, gray,
+                                                 curr, m.sigma, measured, m.road)
         if p.grow > 0 and not res.static_camera:
-            likelihood = self._grown(likelihood, valid, cell_flow, t0, t1)
+            likelihood = self._grown(likelihood, valid, cell_flow, t0, t1, m.prior_road)
         self._check_road(t0)
-        return self._assemble(flow, cell_flow, res, likelihood, valid, stream=stream,
+        return self._assemble(flow, cell_flow, res, likelihood, valid, stream=m.stream,
                               seeds=seeds)
 
     def _supported_off_arc(self, seeds, flow, cell_flow, rays1, t0, t1, gray, curr, sigma,
-                           measured) -> NDArray[np.bool_]:
+                           measured, road: Road) -> NDArray[np.bool_]:
         """The seed cells whose evidence the images support (:mod:`fisheyemotion.photometric`):
         their deviation from the epipolar arc, or else their likelihood at the static
         correspondence nearest the measured one (on the arc: the height and anti-parallel
@@ -495,7 +623,7 @@ class MotionDetector:
         at, _ = self.camera.project(arc)
         off_arc = off_arc_supported(gray, curr, flow, p.grid, p.photometric_margin, seeds,
                                     at - (self._centres[r, c] + cell_flow[r, c]), measured)
-        on_arc = constraints(rays0, arc, t0, t1, road=self.road, params=p)
+        on_arc = constraints(rays0, arc, t0, t1, road=road, params=p)
         likelihood = on_arc.likelihood
         if p.significance > 0 and sigma is not None:
             likelihood = self._with_significance(on_arc, sigma[r, c], likelihood)
@@ -521,9 +649,9 @@ class MotionDetector:
             return cached[1]
         return self._static_prior(t0, t1)[0]
 
-    def _grown(self, likelihood, valid, cell_flow, t0, t1) -> NDArray:
+    def _grown(self, likelihood, valid, cell_flow, t0, t1, prior_road: Road) -> NDArray:
         """The likelihood with the cells that regions grow into (:mod:`fisheyemotion.grow`)
-        raised to just above the threshold."""
+        raised to just above the threshold (``prior_road``: the road the pair's prior used)."""
         p = self.params
         with np.errstate(invalid="ignore"):
             moving = valid & (likelihood > p.threshold)
@@ -532,8 +660,8 @@ class MotionDetector:
         ranges = None
         if self.scene is not None and len(self.scene):
             ranges = self._scene_ranges_at_cells(t0)
-        targets, ok = static_scene_targets(self.camera, self._rays0, t0, t1,
-                                           self._prior_road(t0, t1), p.prior_distance, ranges)
+        targets, ok = static_scene_targets(self.camera, self._rays0, t0, t1, prior_road,
+                                           p.prior_distance, ranges)
         residual = np.where(ok[..., None], self._centres + cell_flow - targets, np.nan)
         grown = grow_regions(moving, residual, valid, steps=p.grow)
         raised = np.nextafter(p.threshold, np.inf)

@@ -1,0 +1,107 @@
+"""MotionDetector.stream: apply()'s results, one frame pair's decision beside the next pair's flow."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+import fisheyemotion as fm
+from fisheyemotion import synth
+
+from .cameras import tumvi_kb
+
+CAM = tumvi_kb(320, 240, 100.0)
+STREET = synth.parse_scenario({
+    "name": "stream", "frames": 10, "ego": {"speed_kmh": 20},
+    "camera": {"position": [2, 0, 1.0], "pitch_deg": 10},
+    "static": [{"id": 20, "kind": "wall", "center": [12, -4.0], "size": [14, 0.3, 3.0]},
+               {"id": 21, "kind": "parked_car", "center": [9, 3.0]}],
+    "objects": [{"id": 1, "kind": "pedestrian", "category": "crossing", "start": [8, -2.5],
+                 "heading_deg": 90, "speed_kmh": 5}],
+})
+PARAMS = fm.Params(flow="dis", dis_preset="fast")
+
+
+@pytest.fixture(scope="module")
+def frames():
+    return synth.render_frames(CAM, STREET, supersample=1)
+
+
+def _applied(detector, items):
+    out = []
+    for frame, pose in items:
+        out.append((detector.apply(frame, pose), detector.last_pose))
+    return out
+
+
+def _streamed(detector, items):
+    return [(result, detector.last_pose) for result in detector.stream(items)]
+
+
+def _assert_same(a, b):
+    assert len(a) == len(b)
+    for (ra, pa), (rb, pb) in zip(a, b, strict=True):
+        np.testing.assert_array_equal(pa, pb)
+        assert (ra is None) == (rb is None)
+        if ra is not None:
+            np.testing.assert_array_equal(ra.likelihood, rb.likelihood)
+            np.testing.assert_array_equal(ra.mask, rb.mask)
+            assert [r.bbox for r in ra.regions] == [r.bbox for r in rb.regions]
+
+
+@pytest.mark.parametrize("road", [None, "auto"], ids=["given-road", "road-auto"])
+def test_stream_gives_apply_results_deciding_in_a_second_thread(frames, road, monkeypatch):
+    items = [(f.image, f.pose) for f in frames]
+    expected = _applied(fm.MotionDetector(CAM, road, PARAMS), items)
+    assert sum(r is not None and r.mask.any() for r, _ in expected) >= 3  # something to compare
+
+    threads = []
+    decide = fm.MotionDetector._decide
+
+    def recording(self, measured):
+        threads.append(threading.current_thread().name)
+        return decide(self, measured)
+
+    monkeypatch.setattr(fm.MotionDetector, "_decide", recording)
+    got = _streamed(fm.MotionDetector(CAM, road, PARAMS), items)
+    _assert_same(expected, got)
+    assert len(threads) == len(frames) - PARAMS.frame_gap
+    assert all(name.startswith("fisheyemotion-decide") for name in threads)
+
+
+def test_stream_without_poses_equals_apply(frames):
+    items = [(f.image, None) for f in frames]
+    with pytest.warns(UserWarning, match="scale is unknown"):
+        expected = _applied(fm.MotionDetector(CAM, params=PARAMS), items)
+    with pytest.warns(UserWarning, match="scale is unknown"):
+        got = _streamed(fm.MotionDetector(CAM, params=PARAMS), items)
+    _assert_same(expected, got)
+
+
+def test_leaving_a_stream_early_leaves_the_detector_as_apply_would(frames):
+    items = [(f.image, f.pose) for f in frames]
+    expected = _applied(fm.MotionDetector(CAM, params=PARAMS), items)
+    detector = fm.MotionDetector(CAM, params=PARAMS)
+    got = []
+    for result in detector.stream(items):
+        got.append((result, detector.last_pose))
+        if len(got) == 6:
+            break
+    _assert_same(expected[:6], got)
+    # The 7th frame was taken in (its flow measured beside the 6th result's decision): it is
+    # detected on leaving, unseen, so the detector goes on as apply() after 7 frames.
+    np.testing.assert_array_equal(detector.last_pose, frames[6].pose)
+    _assert_same(expected[7:], _applied(detector, items[7:]))
+
+
+def test_a_bad_frame_mid_stream_is_a_value_error_after_the_results_before_it(frames):
+    items = [(f.image, f.pose) for f in frames[:6]] + [(frames[6].image[:100], frames[6].pose)]
+    detector = fm.MotionDetector(CAM, params=PARAMS)
+    got = []
+    with pytest.raises(ValueError, match="frame"):
+        for result in detector.stream(items):
+            got.append(result)
+    assert len(got) == 6  # every frame before the refused one has its result
+    assert got[2] is None and got[3] is not None
