@@ -30,7 +30,8 @@ def frames():
     return out, r.roi()
 
 
-STREAM_FRAMES = 12  # the stream benchmark: 6 frames to fill the gap and the scene model, 6 timed
+STREAM_FRAMES = 18  # the stream benchmark: 6 frames to fill the gap and the scene model, 12 timed
+STREAM_WARMUP = 6
 
 
 def _gray(f):
@@ -139,7 +140,7 @@ def test_stream_640x480(benchmark, frames, name, threads, api):
     model have filled."""
     fr, roi = frames
     grays = [_gray(f) for f in fr]
-    half = STREAM_FRAMES // 2
+    half = STREAM_WARMUP
 
     def setup():
         det = fm.MotionDetector(CAM, params=fm.Params(**CONFIGS[name]), roi=roi)

@@ -8,8 +8,8 @@ Prints: the flow error on static structure with and without the static-scene mod
 of cells above 3 sigma in the height term per surface, how fast and how well the road is
 estimated in the first camera's frame, what the false regions of the default pipeline are, how
 far the prior and the flow are off there, how far the scene model's ranges are off on the
-tuning street's brick wall, and what the ground-contact test's scene-agreement veto costs and
-buys with the exact flow.
+tuning street's brick wall, what the ground-contact test's scene-agreement veto costs and
+buys with the exact flow, and whether one region statistic could drop the false regions.
 """
 
 from __future__ import annotations
@@ -282,6 +282,67 @@ def scene_agreement_tradeoff() -> None:
         print(f"exact flow, {name}: false-positive frames / crossing detected: {cells}")
 
 
+def false_region_rules() -> None:
+    """Could one region statistic drop the false regions of ``Params()`` (Farneback, streamed,
+    every demo sequence)? False-positive frames per scene group with the regions that a rule
+    names dropped, beside the share of true regions (touching a moving object) it drops too."""
+    import cv2
+    import pandas as pd
+
+    groups = {"open road": ("approaching", "crossing", "curve", "highway", "overtaking",
+                            "parking_lot", "preceding", "static_ego", "static_world"),
+              "street (tuning)": ("street_kb", "street_ds"),
+              "street (held out)": ("street_heldout_kb", "street_heldout_ds")}
+    weights = dict(zip(("epipolar", "depth", "height", "antiparallel"), fm.Params().weights,
+                       strict=True))
+    rows, frames = [], {g: 0 for g in groups}
+    for group, names in groups.items():
+        for name in names:
+            seq = Sequence(SEQUENCES / name)
+            cam = seq.camera
+            h, w = cam.height, cam.width
+            rays, _ = cam.unproject(np.stack(np.meshgrid(np.arange(w), np.arange(h)), -1)
+                                    .astype(float))
+            off_axis = np.degrees(np.arccos(np.clip(rays[..., 2], -1, 1)))
+            valid = cam.valid_pixel_mask() & (seq.roi() > 0 if seq.roi() is not None else True)
+            det = fm.MotionDetector(cam, params=fm.Params(), roi=seq.roi())
+            before = None
+            items = ((seq.frame(i), seq.poses[i]) for i in range(len(seq)))
+            for k, result in enumerate(det.stream(items)):
+                if result is None:
+                    continue
+                frames[group] += 1
+                mask = (result.mask > 0) & valid
+                moving = (seq.mask(k) > 0) & valid
+                n, labels = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
+                for i in range(1, n):
+                    region = labels == i
+                    lead = max(weights, key=lambda t: weights[t] * result.maps[t][region].mean())
+                    rows.append({"group": group, "sequence": name, "frame": k,
+                                 "true": bool(moving[region].any()), "area": int(region.sum()),
+                                 "off_axis": float(off_axis[region].mean()), "lead": lead,
+                                 "before": bool(before is not None and before[region].any())})
+                before = mask
+    df = pd.DataFrame(rows)
+    rules = {"none": np.zeros(len(df), bool),
+             "anti-parallel-led beyond 60 deg": (df.lead == "antiparallel") & (df.off_axis > 60),
+             "every region beyond 60 deg": df.off_axis > 60,
+             "every anti-parallel-led region": df.lead == "antiparallel",
+             "not flagged in the frame before": ~df.before,
+             "smaller than 400 px": df.area < 400}
+    print(f"false regions {int((~df.true).sum())}, of which beyond 60 deg off axis "
+          f"{100 * (df.off_axis[~df.true] > 60).mean():.0f} % (true regions "
+          f"{100 * (df.off_axis[df.true] > 60).mean():.0f} %)")
+    for rule, drop in rules.items():
+        cells = []
+        for group in groups:
+            kept = df[(df.group == group) & ~drop & ~df.true]
+            fp = len(kept.groupby(["sequence", "frame"])) / frames[group]
+            lost = drop[(df.group == group) & df.true].mean()
+            cells.append(f"{group} {100 * fp:.0f} % ({100 * lost:.0f} % of true regions dropped)")
+        print(f"  drop {rule}: false-positive frames " + ", ".join(cells))
+
+
 if __name__ == "__main__":
     if not SEQUENCES.is_dir():
         sys.exit(f"{SEQUENCES}: run 'make demo' first")
@@ -294,3 +355,4 @@ if __name__ == "__main__":
     wall_ranges()
     pose_steps()
     scene_agreement_tradeoff()
+    false_region_rules()
