@@ -566,13 +566,16 @@ class MotionDetector:
             if contact:
                 with np.errstate(invalid="ignore", divide="ignore"):
                     range_error = sigma / parallax  # relative: d(lambda)/lambda
-                likelihood = self._explain_standing(res, likelihood, valid, ranges, range_error,
-                                                    t0)
+                likelihood, doubted = self._explain_standing(res, likelihood, valid, ranges,
+                                                             range_error, sigma, t0)
             if keep_scene:
                 with np.errstate(invalid="ignore"):
                     conditioned = parallax >= np.sin(TRIANGULATION_PARALLAX)
+                    static = valid & (likelihood < p.threshold)
+                    if contact:  # static by its arc, but its range or the model's is wrong
+                        static &= ~doubted
                     self.scene.add(self._rays0, np.where(conditioned, ranges, np.nan), t0,
-                                   valid & (likelihood < p.threshold))
+                                   static)
         return _Measured(flow, cell_flow, res, likelihood, valid, rays1, t0, t1, gray, curr,
                          sigma, static_flow, self.road,
                          self._prior_road(t0, t1) if p.grow > 0 else None, stream)
@@ -707,18 +710,21 @@ class MotionDetector:
                                             np.nan))
 
     def _explain_standing(self, res: ConstraintResult, likelihood, valid, ranges, range_error,
-                          pose0) -> NDArray:
+                          sigma, pose0) -> tuple[NDArray, NDArray[np.bool_]]:
         """The likelihood with the anti-parallel deviation removed from regions that stand on
-        the road (:mod:`fisheyemotion.ground_contact`) and agree with the scene model
-        (``range_error``: each cell's relative range error from its flow's)."""
+        the road (:mod:`fisheyemotion.ground_contact`) and agree with the scene model or,
+        with ``params.contact_arc``, lie on their epipolar arc (``range_error``: each cell's
+        relative range error from its flow's; ``sigma``: its flow's angular error); and the
+        cells explained by their arc alone, whose range disagrees with the model's."""
         p = self.params
+        doubted = np.zeros(likelihood.shape, bool)
         antiparallel = np.where(np.isnan(res.antiparallel), 0.0, res.antiparallel)
         weighted = p.weights[3] * antiparallel / sum(p.weights)
         with np.errstate(invalid="ignore", divide="ignore"):
             moving = valid & (likelihood > p.threshold)
             share = np.where(moving, weighted / likelihood, 0.0)
         if not moving.any():
-            return likelihood
+            return likelihood, doubted
         stands = standing_regions(moving, share, ranges, self._rays0, pose0, self.camera,
                                   self.road, p.grid, ratio=p.contact_ratio)
         if self.scene is not None and len(self.scene) and stands.any():
@@ -730,8 +736,13 @@ class MotionDetector:
             with np.errstate(invalid="ignore", divide="ignore"):
                 tolerance = np.fmax(SCENE_AGREEMENT, AGREEMENT_SIGMAS * range_error)
                 moved = np.abs(ranges / before - 1) > tolerance
+                if p.contact_arc > 0:
+                    # ... unless it is seen where a static point would be, on its epipolar
+                    # arc: a pedestrian stepping out moves off it, a parked car does not.
+                    doubted = stands & moved & (res.epipolar < p.contact_arc * sigma)
+                    moved &= ~doubted
             stands &= ~moved
-        return np.where(stands, likelihood - weighted, likelihood)
+        return np.where(stands, likelihood - weighted, likelihood), doubted
 
     def _scene_ranges_at_cells(self, pose0: NDArray) -> NDArray[np.float64]:
         """The scene model's ranges at the cell centres, read off the prior's coarser samples

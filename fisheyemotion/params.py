@@ -126,6 +126,12 @@ class Params:
         static floats above the road and keeps it.
     contact_ratio : float
         Ground-contact ratio below which a region stands on the road.
+    contact_arc : float
+        Flow-error sigmas: a standing column's cell whose epipolar deviation is below this
+        many of its flow's sigmas (``significance``'s error model) is explained even where its
+        range disagrees with the scene model: a static object is seen on its epipolar arc, a
+        pedestrian stepping out beside it moves off it. Such a cell is not added to the scene
+        model (its range or the model's is wrong). 0 leaves the scene model's veto alone.
     scene_memory : int
         Detections whose static points the scene model keeps.
     prior_distance : float
@@ -218,6 +224,7 @@ class Params:
     pose_refinement: str = "off"
     refine_tolerance: float = 0.1
     contact_ratio: float = 1.05
+    contact_arc: float = 0.03
     scene_prior: bool = True
     scene_memory: int = 3
     frame_gap: int = 3
@@ -248,6 +255,7 @@ class Params:
         for name in ("lambda_h", "lambda_p", "lambda_p_ratio", "min_baseline", "epipole_margin",
                      "threshold", "saturation", "fb_tolerance", "fb_relative", "min_texture",
                      "min_parallax", "seed_threshold", "extend_threshold", "contact_ratio",
+                     "contact_arc",
                      "photometric_margin", "photometric_tolerance",
                      "significance", "flow_sigma", "refine_tolerance"):
             v = getattr(self, name)

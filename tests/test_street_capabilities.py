@@ -258,6 +258,54 @@ def test_regions_not_led_by_the_antiparallel_term_are_never_explained():
                                 ratio=1.05).any()
 
 
+STEP_OUT = synth.parse_scenario({
+    "name": "step_out", "frames": 16, "ego": {"speed_kmh": 22, "start": [0, -1.75]},
+    "camera": {"position": [2.0, 0.0, 0.9], "pitch_deg": 15},
+    "static": [{"id": 24, "kind": "parked_car", "center": [6.5, -4.6]},
+               {"id": 25, "kind": "parked_car", "center": [13.5, -4.6], "texture": "coffee"},
+               {"id": 26, "kind": "parked_car", "center": [18.5, -4.6]}],
+    "objects": [{"id": 1, "kind": "pedestrian", "category": "crossing", "start": [10.5, -6.0],
+                 "heading_deg": 90, "speed_kmh": 4}]})
+
+
+def _exact_flow_run(tmp_path, camera, scenario, params, frames):
+    from fisheyemotion.eval.evaluate import evaluate_sequence
+
+    seq = synth.write_sequence(tmp_path / scenario.name, camera, scenario, frames=frames,
+                               flow=False, progress=False, supersample=1)
+    return evaluate_sequence(seq, params, exact_flow=True, ablation=False)
+
+
+def test_parked_cars_on_their_arc_are_explained_with_the_exact_flow(tmp_path):
+    """With perfect correspondences a parked car that stands on the road and is seen on its
+    epipolar arc is static, whatever the scene model's 8-px median mixed it with."""
+    world = synth.load_scenario("static_world")
+    cam = tumvi_kb(320, 240, 100.0)
+    veto_only = _exact_flow_run(tmp_path / "a", cam, world, fm.Params(contact_arc=0.0), 12)
+    with_arc = _exact_flow_run(tmp_path / "b", cam, world, fm.Params(), 12)
+    assert veto_only.frames.fp_frame.sum() >= 3
+    assert with_arc.frames.fp_frame.sum() == 0
+
+
+def test_a_pedestrian_stepping_out_between_parked_cars_keeps_the_scene_models_veto(tmp_path,
+                                                                                  monkeypatch):
+    """The arc test removes the parked cars' false regions and keeps the pedestrian, which
+    stands on the road beside them but moves off its arc; without the scene model's veto the
+    pedestrian is lost."""
+    import importlib
+
+    cam = tumvi_kb(640, 480, 200.0)
+    veto_only = _exact_flow_run(tmp_path / "a", cam, STEP_OUT, fm.Params(contact_arc=0.0), 16)
+    with_arc = _exact_flow_run(tmp_path / "b", cam, STEP_OUT, fm.Params(), 16)
+    monkeypatch.setattr(importlib.import_module("fisheyemotion.detect"), "SCENE_AGREEMENT",
+                        np.inf)  # no range ever disagrees: no veto
+    no_veto = _exact_flow_run(tmp_path / "c", cam, STEP_OUT, fm.Params(contact_arc=0.0), 16)
+    found = {name: int(r.objects.detected.sum())
+             for name, r in (("veto", veto_only), ("arc", with_arc), ("none", no_veto))}
+    assert veto_only.frames.fp_frame.sum() > 0 and with_arc.frames.fp_frame.sum() == 0
+    assert found["arc"] >= found["veto"] >= 3 > found["none"]
+
+
 # ---- significance ------------------------------------------------------------------------
 
 def test_pixel_angle_is_one_over_the_focal_length_at_the_centre():
