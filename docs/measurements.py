@@ -8,8 +8,8 @@ Prints: the flow error on static structure with and without the static-scene mod
 of cells above 3 sigma in the height term per surface, how fast and how well the road is
 estimated in the first camera's frame, what the false regions of the default pipeline are, how
 far the prior and the flow are off there, how far the scene model's ranges are off on the
-tuning street's brick wall, what the ground-contact test's scene-agreement veto costs and
-buys with the exact flow, and whether one region statistic could drop the false regions.
+tuning street's brick wall, what the ground-contact test's scene-agreement veto and the arc
+test cost and buy with the exact flow, and whether one region statistic could drop the false regions.
 """
 
 from __future__ import annotations
@@ -257,9 +257,9 @@ def pose_steps(names=("crossing", "highway", "street_kb", "street_ds", "curve", 
 
 
 def scene_agreement_tradeoff() -> None:
-    """The ground-contact test's scene-agreement veto, on and off, with the renderer's exact
-    flow over all the demo sequences (``Params()``): false-positive frames and crossing detection
-    per scene group."""
+    """The ground-contact test's scene-agreement veto alone (``contact_arc=0``), with the arc
+    test of standing cells (the defaults) and off, with the renderer's exact flow over all the
+    demo sequences: false-positive frames and crossing detection per scene group."""
     import importlib
 
     from fisheyemotion.eval.evaluate import evaluate, sequence_paths
@@ -268,10 +268,13 @@ def scene_agreement_tradeoff() -> None:
     detect_module = importlib.import_module("fisheyemotion.detect")  # the module, not detect()
     rows = {}
     saved = detect_module.SCENE_AGREEMENT
+    variants = (("veto alone", saved, fm.Params(contact_arc=0.0)),
+                ("veto and arc test (defaults)", saved, fm.Params()),
+                ("no veto", np.inf, fm.Params(contact_arc=0.0)))
     try:
-        for name, tolerance in (("agreement on", saved), ("agreement off", np.inf)):
+        for name, tolerance, params in variants:
             detect_module.SCENE_AGREEMENT = tolerance  # inf: no range ever disagrees
-            result = evaluate(sequence_paths([SEQUENCES]), fm.Params(), workers=1,
+            result = evaluate(sequence_paths([SEQUENCES]), params, workers=1,
                               progress=False, ablation=False, exact_flow=True)
             rows[name] = groups_table(result).set_index("scenes")
     finally:
