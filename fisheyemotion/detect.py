@@ -303,9 +303,9 @@ class MotionDetector:
         for: that frame is detected on leaving, unseen, so the detector goes on as ``apply``
         would after the same frames.
 
-        >>> for result in detector.stream(zip(frames, poses)):
-        ...     if result is not None:
-        ...         cv2.imshow("moving", result.mask)
+        >>> for k, result in enumerate(detector.stream(zip(frames, poses))):
+        ...     if result is not None:  # None while the frame gap fills
+        ...         cv2.imwrite(f"mask_{k:06d}.png", result.mask)
         """
         pending: tuple[Future, NDArray] | None = None  # the decision under way, its pose
         taken = None  # a pair whose flow is measured, until its own decision is under way
