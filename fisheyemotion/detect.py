@@ -323,7 +323,7 @@ class MotionDetector:
                 items = iter(items)
                 while True:
                     try:
-                        frame, pose = next(items)
+                        frame, pose = _pair_item(next(items))
                         if pending is not None and (pose is None or self._tracker is not None
                                                     or self.params.pose_refinement != "off"):
                             job, pending = pending, None  # this pose needs the last mask
@@ -820,6 +820,15 @@ class MotionDetector:
                           "frame? road='auto' estimates the road", stacklevel=3)
         grid = Grid(p.grid, self._centres, cell_flow, measured, valid)
         return Detection(likelihood, mask, maps, flow, grid, regions, res.static_camera)
+
+
+def _pair_item(item) -> tuple:
+    """One ``(frame, pose)`` item of :meth:`MotionDetector.stream`, or a ValueError."""
+    if isinstance(item, np.ndarray) or not isinstance(item, tuple | list) or len(item) != 2:
+        raise ValueError("items: expected (frame, pose) pairs (pose None to estimate it), got "
+                         f"{type(item).__name__}" + (f" of length {len(item)}"
+                                                     if isinstance(item, tuple | list) else ""))
+    return item[0], item[1]
 
 
 #: ``detect()``'s detectors (their grid rays and OpenCV flow objects) are cached per thread:

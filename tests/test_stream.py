@@ -105,3 +105,15 @@ def test_a_bad_frame_mid_stream_is_a_value_error_after_the_results_before_it(fra
             got.append(result)
     assert len(got) == 6  # every frame before the refused one has its result
     assert got[2] is None and got[3] is not None
+
+
+@pytest.mark.parametrize("item", [np.zeros((240, 320), np.uint8), (np.zeros((240, 320), np.uint8),),
+                                  "frame.png"], ids=["bare-frame", "1-tuple", "string"])
+def test_an_item_that_is_not_a_frame_and_pose_is_a_value_error_naming_items(frames, item):
+    detector = fm.MotionDetector(CAM, params=PARAMS)
+    items = [(f.image, f.pose) for f in frames[:4]] + [item]
+    got = []
+    with pytest.raises(ValueError, match="items: expected \\(frame, pose\\) pairs"):
+        for result in detector.stream(items):
+            got.append(result)
+    assert len(got) == 4
