@@ -310,10 +310,15 @@ class MotionDetector:
         pending: tuple[Future, NDArray] | None = None  # the decision under way, its pose
         taken = None  # a pair whose flow is measured, until its own decision is under way
 
-        def finish(job: tuple[Future, NDArray]) -> Detection:
-            result = job[0].result()
-            self._last_mask, self.last_pose = result.mask > 0, job[1]
+        def record(result: Detection, pose: NDArray) -> Detection:
+            self._last_mask, self.last_pose = result.mask > 0, pose
             return result
+
+        def flush():  # the decision under way, if any, as the next result
+            nonlocal pending
+            if pending is not None:
+                (future, pose), pending = pending, None
+                yield record(future.result(), pose)
 
         def measure(flow, backward, g0, g1, t0, t1) -> _Measured:
             return self._measure(flow, t0, t1, backward, g0, curr=g1, stream=True)
@@ -324,42 +329,34 @@ class MotionDetector:
                 while True:
                     try:
                         frame, pose = _pair_item(next(items))
-                        if pending is not None and (pose is None or self._tracker is not None
-                                                    or self.params.pose_refinement != "off"):
-                            job, pending = pending, None  # this pose needs the last mask
-                            yield finish(job)
+                        if (pose is None or self._tracker is not None
+                                or self.params.pose_refinement != "off"):
+                            yield from flush()  # this pose needs the last mask
                         pair = self._take(frame, pose)
                     except StopIteration:
                         break
                     except Exception:  # a refused frame or pose: the results before it first
-                        if pending is not None:
-                            job, pending = pending, None
-                            yield finish(job)
+                        yield from flush()
                         raise
                     world = self.last_pose
                     if pair is not None:
                         taken = (*self._pair_flow(*pair), *pair), world  # beside the decision
-                    if pending is not None:
-                        job, pending = pending, None
-                        yield finish(job)
+                    yield from flush()
                     self.last_pose = world
                     if pair is None:  # the frame gap is filling
                         yield None
                         continue
                     pending = (pool.submit(self._decide, measure(*taken[0])), world)
                     taken = None
-                if pending is not None:
-                    job, pending = pending, None
-                    yield finish(job)
+                yield from flush()
             finally:
                 # Left early (or failing): the frames taken in still update the detector as
                 # apply() would, their results unseen.
                 with contextlib.suppress(Exception):
                     if pending is not None:
-                        finish(pending)
+                        record(pending[0].result(), pending[1])
                     if taken is not None:
-                        result = self._decide(measure(*taken[0]))
-                        self._last_mask, self.last_pose = result.mask > 0, taken[1]
+                        record(self._decide(measure(*taken[0])), taken[1])
 
     def _take(self, frame: NDArray[np.uint8], pose: NDArray | None
               ) -> tuple[NDArray[np.uint8], NDArray[np.uint8], NDArray, NDArray] | None:
