@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from . import _warmup
 from .calib._arrays import as_points
 from .calib.transforms import check_rigid
 from .params import Params
@@ -134,6 +135,7 @@ def constraints(
     valid = np.empty(len(p_flat), dtype=bool)
     from ._engine_kernel import constraint_kernel  # numba on first use: a light import
 
+    _warmup.wait()
     constraint_kernel(
         p_flat, q_flat, np.ascontiguousarray(t0[:3, :3]), np.ascontiguousarray(t1[:3, :3]),
         baseline / b, b, -road.up, float(road.height(t0[:3, 3])) if road.known else 0.0,
@@ -177,6 +179,7 @@ def nearest_static_ray(rays0: NDArray[np.float64], rays1: NDArray[np.float64], p
         return arc
     from ._engine_kernel import constraint_kernel  # numba on first use: a light import
 
+    _warmup.wait()
     # Only the arc is wanted: no road (eta 0), no dead bands, no epipole margin.
     constraint_kernel(
         p_flat, np.ascontiguousarray(rays1, dtype=np.float64),

@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from . import _warmup
 from .calib.base import CameraModel
 from .calib.transforms import check_rigid
 from .constraints import ConstraintResult, constraints, nearest_static_ray
@@ -218,6 +219,7 @@ class MotionDetector:
         if g > min(camera.width, camera.height):
             raise ValueError(f"params.grid: {g} is larger than the {camera.width}x{camera.height} image")
         self.size = (camera.width, camera.height)
+        _warmup.start()  # a cold numba cache: the camera-independent kernels on a second core
         self._centres = grid_centres(camera.width, camera.height, g)
         self._rays0, valid0 = camera.unproject(self._centres)
         pixel_valid = camera.valid_pixel_mask()

@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from . import _warmup
 from .calib.base import pixel_grid
 from .params import Params
 
@@ -127,6 +128,8 @@ def grid_transfer(cell_flow: NDArray, order: NDArray, grid: int, *,
         Flat index of the source cell, -1 where none.
     """
     from ._grid_kernels import transfer  # numba on first use: a light import
+
+    _warmup.wait()
 
     rows, cols = order.shape
     offset = (grid - 1) / 2  # the cell centres, broadcast (grid_centres without its meshgrid)
