@@ -48,6 +48,7 @@ from .photometric import (
     static_explained,
 )
 from .prior import EgoFlowPrior, lands_on, static_scene_targets
+from .range_consistency import RangeMemory
 from .refinement import PoseRefiner
 from .road import Road
 from .segment import Region, segment_cells
@@ -253,6 +254,7 @@ class MotionDetector:
         self._temporal: tuple[NDArray, NDArray] | None = None
         self._history: deque[tuple[NDArray[np.uint8], NDArray[np.float64]]] = deque(
             maxlen=self.params.frame_gap)
+        self._ranges = RangeMemory(self.params.frame_gap + 1)
 
     def detect(self, prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray,
                pose1: NDArray) -> Detection:
@@ -412,6 +414,7 @@ class MotionDetector:
         """Forget the stream's previous frames, its temporal state, its scene model and its
         estimated poses."""
         self._history.clear()
+        self._ranges.clear()
         self._temporal = None
         self._tracker, self._last_mask, self.last_pose = None, None, None
         self._refiner = None
@@ -557,19 +560,24 @@ class MotionDetector:
             likelihood = self._with_significance(res, sigma, likelihood)
         keep_scene = stream and self.scene is not None
         contact = p.ground_contact and self.road.known
-        if (keep_scene or contact) and not res.static_camera:
+        three = (p.range_consistency > 0 and stream and gray is not None and curr is not None
+                 and sigma is not None)
+        if (keep_scene or contact or three) and not res.static_camera:
             # One triangulation for both: every range counts for the contact test, however
             # little parallax it has; the scene model keeps only well-conditioned ones.
             ranges, _, parallax = triangulate_range(self._rays0, rays1, t0, t1,
                                                     far=p.prior_distance, with_parallax=True)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                range_error = sigma / parallax if sigma is not None else None  # d(lambda)/lambda
+                conditioned = parallax >= np.sin(TRIANGULATION_PARALLAX)
             if contact:
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    range_error = sigma / parallax  # relative: d(lambda)/lambda
                 likelihood, doubted = self._explain_standing(res, likelihood, valid, ranges,
                                                              range_error, sigma, t0)
+            if three:
+                likelihood = self._three_views(likelihood, valid & conditioned, ranges,
+                                               range_error, cell_flow, gray, curr, t0, t1)
             if keep_scene:
                 with np.errstate(invalid="ignore"):
-                    conditioned = parallax >= np.sin(TRIANGULATION_PARALLAX)
                     static = valid & (likelihood < p.threshold)
                     if contact:  # static by its arc, but its range or the model's is wrong
                         static &= ~doubted
@@ -742,6 +750,27 @@ class MotionDetector:
                     moved &= ~doubted
             stands &= ~moved
         return np.where(stands, likelihood - weighted, likelihood), doubted
+
+    def _three_views(self, likelihood, usable, ranges, range_error, cell_flow, prev, curr,
+                     t0, t1) -> NDArray[np.float64]:
+        """The likelihood raised where a cell's range disagrees with the static point the
+        previous pair landed in it, by ``params.range_consistency`` flow-error sigmas or more
+        (:mod:`fisheyemotion.range_consistency`); and this pair's static cells remembered for
+        the pair whose previous frame ``curr`` will be."""
+        p = self.params
+        usable = usable & np.isfinite(ranges) & (ranges < p.prior_distance)
+        z = self._ranges.deviation(prev, ranges, range_error, t0[:3, 3])
+        if z is not None:
+            with np.errstate(invalid="ignore"):
+                raised = np.where(usable & (z > p.range_consistency),
+                                  p.threshold * z / p.range_consistency, np.nan)
+            likelihood = np.fmax(likelihood, raised)
+        with np.errstate(invalid="ignore"):
+            static = usable & (likelihood < p.threshold)
+        points = t0[:3, 3] + (self._rays0 @ t0[:3, :3].T) * ranges[..., None]
+        self._ranges.remember(curr, points, range_error, self._centres + cell_flow, static,
+                              p.grid, t1[:3, 3])
+        return likelihood
 
     def _scene_ranges_at_cells(self, pose0: NDArray) -> NDArray[np.float64]:
         """The scene model's ranges at the cell centres, read off the prior's coarser samples

@@ -132,6 +132,12 @@ class Params:
         range disagrees with the scene model: a static object is seen on its epipolar arc, a
         pedestrian stepping out beside it moves off it. Such a cell is not added to the scene
         model (its range or the model's is wrong). 0 leaves the scene model's veto alone.
+    range_consistency : float
+        Streams only, 0 (off) by default: flow-error sigmas by which a cell's range may disagree
+        with the range the previous pair triangulated for the static point that landed in it
+        (:mod:`fisheyemotion.range_consistency`: three views of a static point agree, of a point
+        moving along its epipolar arc do not); a cell at this many reaches the threshold.
+        Measured, not the default yet (``docs/evaluation.md``, *Three views*).
     scene_memory : int
         Detections whose static points the scene model keeps.
     prior_distance : float
@@ -225,6 +231,7 @@ class Params:
     refine_tolerance: float = 0.1
     contact_ratio: float = 1.05
     contact_arc: float = 0.03
+    range_consistency: float = 0.0
     scene_prior: bool = True
     scene_memory: int = 3
     frame_gap: int = 3
@@ -255,7 +262,7 @@ class Params:
         for name in ("lambda_h", "lambda_p", "lambda_p_ratio", "min_baseline", "epipole_margin",
                      "threshold", "saturation", "fb_tolerance", "fb_relative", "min_texture",
                      "min_parallax", "seed_threshold", "extend_threshold", "contact_ratio",
-                     "contact_arc",
+                     "contact_arc", "range_consistency",
                      "photometric_margin", "photometric_tolerance",
                      "significance", "flow_sigma", "refine_tolerance"):
             v = getattr(self, name)
