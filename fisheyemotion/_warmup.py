@@ -9,7 +9,8 @@ compiles them in a child process, which writes them to the same cache, while thi
 compiles :data:`HERE` at once and then the camera's projection kernels and the first flow, as
 before. :func:`wait`, called before a kernel of :data:`CHILD` is first run, waits for the
 child; the kernel is then loaded from the cache. Nothing changes where the cache is warm, on
-one core, with ``FISHEYEMOTION_WARMUP=0``, where numba cannot cache or where the child fails:
+one core, with ``FISHEYEMOTION_WARMUP=0``, in a frozen application (PyInstaller and the like:
+its executable is not a Python interpreter), where numba cannot cache or where the child fails:
 the kernels are then compiled where they are first run, as before.
 """
 
@@ -63,8 +64,8 @@ def start() -> None:
             return
         _started = True
         if (os.cpu_count() or 1) < 2 or os.environ.get("FISHEYEMOTION_WARMUP") == "0" \
-                or not _cold():
-            return
+                or not sys.executable or getattr(sys, "frozen", False) or not _cold():
+            return  # (a frozen application's executable is not a Python interpreter)
         try:
             _child = subprocess.Popen(
                 [sys.executable, "-c", "from fisheyemotion import _warmup; _warmup.compile(_warmup.CHILD)"],

@@ -78,3 +78,30 @@ def test_a_cold_first_detection_with_the_child(tmp_path):
         assert result["stats"][name] == [1, 1, 0], name
     for _, name in _warmup.HERE:
         assert result["stats"][name] == [1, 0, 1], name
+
+
+@pytest.mark.parametrize("setting", ["one core", "off", "frozen"])
+def test_no_child_where_it_cannot_help_or_cannot_run(monkeypatch, setting):
+    """start() spawns nothing on one core, with FISHEYEMOTION_WARMUP=0 or in a frozen
+    application (whose executable is not a Python interpreter), even with a cold cache."""
+    monkeypatch.setattr(_warmup, "_started", False)
+    monkeypatch.setattr(_warmup, "_child", None)
+    monkeypatch.setattr(_warmup, "_cold", lambda: True)
+    spawned = []
+    monkeypatch.setattr(_warmup.subprocess, "Popen", lambda *a, **k: spawned.append(a))
+    monkeypatch.setattr(_warmup, "compile", lambda kernels: None)
+    monkeypatch.setattr(_warmup.os, "cpu_count", lambda: 1 if setting == "one core" else 2)
+    if setting == "off":
+        monkeypatch.setenv("FISHEYEMOTION_WARMUP", "0")
+    elif setting == "frozen":
+        monkeypatch.setattr(_warmup.sys, "frozen", True, raising=False)
+    _warmup.start()
+    assert spawned == []
+    # ... and the same cold cache on two cores, warm-up on, spawns the child.
+    monkeypatch.setattr(_warmup, "_started", False)
+    monkeypatch.delenv("FISHEYEMOTION_WARMUP", raising=False)
+    monkeypatch.setattr(_warmup.sys, "frozen", False, raising=False)
+    monkeypatch.setattr(_warmup.os, "cpu_count", lambda: 2)
+    _warmup.start()  # (Popen is the stub above: nothing is started)
+    assert len(spawned) == 1
+    monkeypatch.setattr(_warmup, "_child", None)
