@@ -117,3 +117,15 @@ def test_an_item_that_is_not_a_frame_and_pose_is_a_value_error_naming_items(fram
         for result in detector.stream(items):
             got.append(result)
     assert len(got) == 4
+
+
+def test_three_views_in_a_stream_equal_apply_and_change_its_results(frames):
+    """``range_consistency`` works on apply()'s own frames (remembered by identity) and stream()
+    gives the same results with it."""
+    params = PARAMS.replace(range_consistency=0.5)  # low enough to change something here
+    items = [(f.image, f.pose) for f in frames]
+    on = _applied(fm.MotionDetector(CAM, None, params), items)
+    _assert_same(on, _streamed(fm.MotionDetector(CAM, None, params), items))
+    off = _applied(fm.MotionDetector(CAM, None, PARAMS), items)
+    assert any(not np.array_equal(a.likelihood, b.likelihood)
+               for (a, _), (b, _) in zip(on, off, strict=True) if a is not None)
