@@ -105,3 +105,13 @@ def test_no_child_where_it_cannot_help_or_cannot_run(monkeypatch, setting):
     _warmup.start()  # (Popen is the stub above: nothing is started)
     assert len(spawned) == 1
     monkeypatch.setattr(_warmup, "_child", None)
+
+
+def test_a_failing_child_is_waited_for_and_forgotten(monkeypatch):
+    """wait() returns once the child has ended, however it ended, and only waits once: the
+    kernels are then compiled where they run, as without the warm-up."""
+    child = subprocess.Popen([sys.executable, "-c", "raise SystemExit(3)"])
+    monkeypatch.setattr(_warmup, "_child", child)
+    _warmup.wait()
+    assert child.returncode == 3 and _warmup._child is None
+    _warmup.wait()  # nothing left to wait for
