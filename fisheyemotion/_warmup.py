@@ -73,7 +73,10 @@ def start() -> None:
         except OSError:
             _child = None
             return
-    compile(HERE)
+    try:
+        compile(HERE)
+    except Exception:  # noqa: BLE001 -- ahead of time only: where they run they compile (or fail) as before
+        pass
 
 
 def wait() -> None:

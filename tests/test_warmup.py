@@ -115,3 +115,21 @@ def test_a_failing_child_is_waited_for_and_forgotten(monkeypatch):
     _warmup.wait()
     assert child.returncode == 3 and _warmup._child is None
     _warmup.wait()  # nothing left to wait for
+
+
+def test_a_failure_compiling_ahead_does_not_reach_the_caller(monkeypatch):
+    """start() runs in MotionDetector's constructor: an error while compiling HERE ahead is
+    left to the kernels' own first call, not raised there."""
+    monkeypatch.setattr(_warmup, "_started", False)
+    monkeypatch.setattr(_warmup, "_child", None)
+    monkeypatch.setattr(_warmup, "_cold", lambda: True)
+    monkeypatch.setattr(_warmup.os, "cpu_count", lambda: 2)
+    monkeypatch.delenv("FISHEYEMOTION_WARMUP", raising=False)
+    monkeypatch.setattr(_warmup.subprocess, "Popen", lambda *a, **k: None)
+
+    def failing(kernels):
+        raise RuntimeError("numba could not compile")
+
+    monkeypatch.setattr(_warmup, "compile", failing)
+    _warmup.start()  # no exception
+    monkeypatch.setattr(_warmup, "_child", None)
