@@ -53,7 +53,7 @@ from .refinement import PoseRefiner
 from .road import Road
 from .segment import Region, segment_cells
 from .significance import cell_sigma, pixel_angle
-from .static_scene import TRIANGULATION_PARALLAX, StaticScene, triangulate_range
+from .static_scene import TRIANGULATION_PARALLAX, StaticScene, triangulate_range, world_points
 
 CONSTRAINT_NAMES = ("epipolar", "depth", "height", "antiparallel")
 
@@ -563,8 +563,9 @@ class MotionDetector:
         three = (p.range_consistency > 0 and stream and gray is not None and curr is not None
                  and sigma is not None)
         if (keep_scene or contact or three) and not res.static_camera:
-            # One triangulation for both: every range counts for the contact test, however
-            # little parallax it has; the scene model keeps only well-conditioned ones.
+            # One triangulation for all: every range counts for the contact test, however
+            # little parallax it has; the scene model and the three views use well-conditioned
+            # ones only.
             ranges, _, parallax = triangulate_range(self._rays0, rays1, t0, t1,
                                                     far=p.prior_distance, with_parallax=True)
             with np.errstate(invalid="ignore", divide="ignore"):
@@ -767,9 +768,8 @@ class MotionDetector:
             likelihood = np.fmax(likelihood, raised)
         with np.errstate(invalid="ignore"):
             static = usable & (likelihood < p.threshold)
-        points = t0[:3, 3] + (self._rays0 @ t0[:3, :3].T) * ranges[..., None]
-        self._ranges.remember(curr, points, range_error, self._centres + cell_flow, static,
-                              p.grid, t1[:3, 3])
+        self._ranges.remember(curr, world_points(self._rays0, ranges, t0), range_error,
+                              self._centres + cell_flow, static, p.grid, t1[:3, 3])
         return likelihood
 
     def _scene_ranges_at_cells(self, pose0: NDArray) -> NDArray[np.float64]:
