@@ -75,7 +75,7 @@ def start() -> None:
             return
     try:
         compile(HERE)
-    except Exception:  # noqa: BLE001 -- ahead of time only: where they run they compile (or fail) as before
+    except Exception:  # ahead of time only: where they first run they compile (or fail) as before
         pass
 
 
