@@ -1,6 +1,8 @@
 """Start-up as a new process sees it: ``import fisheyemotion`` and the first ``detect()`` after it,
 with the numba cache warm, cold (an empty ``NUMBA_CACHE_DIR``, as a fresh clone or install
-finds it) and cold without the warm-up's second process (``FISHEYEMOTION_WARMUP=0``).
+finds it) and cold without the warm-up's second process (``FISHEYEMOTION_WARMUP=0``); beside
+them numba's own start in a new process, the floor of any first result that runs a numba kernel:
+``import numba`` and the first call of one trivial kernel loaded from its warm cache.
 
 Each round is a new interpreter that times itself (``extra_info``: medians over the rounds, in
 seconds); the benchmark's own time is the whole process. One frame pair of the ``crossing``
@@ -78,3 +80,42 @@ def test_first_result(benchmark, pair, cache, tmp_path):
     benchmark.extra_info["first_s"] = statistics.median(t[1] for t in times)
     benchmark.extra_info["import_and_first_s"] = statistics.median(t[0] + t[1] for t in times)
     print(json.dumps({cache: benchmark.extra_info}))
+
+
+FLOOR_KERNEL = """
+import numba
+
+
+@numba.njit(cache=True)
+def total(x):
+    return x.sum()
+"""
+
+FLOOR = """
+import sys, time
+sys.path.insert(0, sys.argv[1])
+import numpy as np
+t1 = time.perf_counter()
+import floor_kernel
+floor_kernel.total(np.ones(3))
+t2 = time.perf_counter()
+print(0.0, t2 - t1)
+"""
+
+
+def test_numba_floor(benchmark, tmp_path):
+    """numba's import and its first cached kernel call in a new process (``first_s``), the
+    part of the warm first result that is numba's own."""
+    benchmark.group = "startup"
+    (tmp_path / "floor_kernel.py").write_text(FLOOR_KERNEL)
+    command = [sys.executable, "-c", FLOOR, str(tmp_path)]
+    subprocess.run(command, check=True, capture_output=True)  # fills the kernel's cache
+    times = []
+
+    def run():
+        out = subprocess.run(command, check=True, capture_output=True, text=True)
+        times.append([float(x) for x in out.stdout.split()])
+
+    benchmark.pedantic(run, rounds=5, warmup_rounds=0)
+    benchmark.extra_info["first_s"] = statistics.median(t[1] for t in times)
+    print(json.dumps({"numba floor": benchmark.extra_info}))

@@ -46,6 +46,7 @@ ADDITIONS = {
     "+ ground contact": {"ground_contact": True},
     "+ growth 4 cells": {"grow": 4},
     "+ extension to half the threshold": {"extend_threshold": 0.0025},
+    "+ extent 0.5 (watershed)": {"extent_reach": 0.5},
     "+ photometric check": {"photometric_check": True},
 }
 

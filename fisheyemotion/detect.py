@@ -27,6 +27,7 @@ from .calib.base import CameraModel
 from .calib.transforms import check_rigid
 from .constraints import ConstraintResult, constraints, nearest_static_ray
 from .egomotion import PoseTracker
+from .extent import grow_to_extent
 from .flow import (
     FlowEstimator,
     grid_average,
@@ -155,6 +156,10 @@ class Detection:
     grid : Grid
     regions : list of Region
     static_camera : bool
+    cell_mask : ndarray of uint8, shape (H, W)
+        255 on the regions' cells before their growth to the objects' extent
+        (``Params.extent_reach``; :mod:`fisheyemotion.extent`): what the constraints flagged.
+        The same as ``mask`` without the growth. Pose estimation and refinement exclude it.
     """
 
     likelihood: NDArray[np.float32]
@@ -164,6 +169,11 @@ class Detection:
     grid: Grid = field(repr=False)
     regions: list[Region] = field(default_factory=list)
     static_camera: bool = False
+    cell_mask: NDArray[np.uint8] | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.cell_mask is None:
+            object.__setattr__(self, "cell_mask", self.mask)
 
     def __iter__(self):
         return iter((self.likelihood, self.mask))
@@ -287,7 +297,7 @@ class MotionDetector:
         if pair is None:
             return None
         result = self._detect_gray(*pair, stream=True)
-        self._last_mask = result.mask > 0
+        self._last_mask = result.cell_mask > 0
         return result
 
     def stream(self, items: Iterable[tuple[NDArray[np.uint8], NDArray | None]]
@@ -315,7 +325,7 @@ class MotionDetector:
         taken = None  # a pair whose flow is measured, until its own decision is under way
 
         def record(result: Detection, pose: NDArray) -> Detection:
-            self._last_mask, self.last_pose = result.mask > 0, pose
+            self._last_mask, self.last_pose = result.cell_mask > 0, pose
             return result
 
         def flush():  # the decision under way, if any, as the next result
@@ -619,7 +629,7 @@ class MotionDetector:
             likelihood = self._grown(likelihood, valid, cell_flow, t0, t1, m.prior_road)
         self._check_road(t0)
         return self._assemble(flow, cell_flow, res, likelihood, valid, stream=m.stream,
-                              seeds=seeds)
+                              seeds=seeds, curr=curr, static_flow=static_flow)
 
     def _supported_off_arc(self, seeds, flow, cell_flow, rays1, t0, t1, gray, curr, sigma,
                            measured, road: Road) -> NDArray[np.bool_]:
@@ -805,7 +815,9 @@ class MotionDetector:
         return np.where(np.isnan(cell_likelihood), np.nan, acc), age
 
     def _assemble(self, flow, cell_flow, res: ConstraintResult, likelihood, valid, *,
-                  stream: bool = False, seeds: NDArray[np.bool_] | None = None) -> Detection:
+                  stream: bool = False, seeds: NDArray[np.bool_] | None = None,
+                  curr: NDArray[np.uint8] | None = None,
+                  static_flow: NDArray[np.float32] | None = None) -> Detection:
         p, (w, h) = self.params, self.size
         measured = np.where(valid, likelihood, np.nan)
         # The measurement lives on the previous frame's cells; the result belongs to the current
@@ -831,15 +843,26 @@ class MotionDetector:
         if stream and (p.temporal_decay > 0 or p.persistence > 1):
             cell_likelihood, age = self._temporal_filter(cell_likelihood, carrier, source)
         likelihood = to_image(np.where(np.isnan(cell_likelihood), 0.0, cell_likelihood))
-        cell_mask, regions = segment_cells(cell_likelihood, threshold=p.threshold, grid=p.grid,
-                                           min_area=p.min_area, age=age,
-                                           persistence=p.persistence,
-                                           seed_threshold=p.seed_threshold,
-                                           extend_threshold=p.extend_threshold,
-                                           seeds=None if seeds is None
-                                           else grid_gather(seeds, source, False))
-        mask = cv2.bitwise_and(grid_upsample(cell_mask.astype(np.uint8) * 255, p.grid, w, h),
-                               self._inside_u8)
+        cell_mask, regions, labels = segment_cells(
+            cell_likelihood, threshold=p.threshold, grid=p.grid, min_area=p.min_area, age=age,
+            persistence=p.persistence, seed_threshold=p.seed_threshold,
+            extend_threshold=p.extend_threshold,
+            seeds=None if seeds is None else grid_gather(seeds, source, False), with_labels=True)
+        cells_now = cv2.bitwise_and(grid_upsample(cell_mask.astype(np.uint8) * 255, p.grid, w, h),
+                                    self._inside_u8)
+        mask = cells_now
+        if p.extent_reach > 0 and curr is not None and regions:
+            # The mask of the frame the user passed last, grown on that frame's image.
+            residual = None
+            if static_flow is not None:  # the cells' own motion, on the current frame's cells
+                centre = (p.grid - 1) // 2
+                rows, cols = cell_flow.shape[:2]
+                at = static_flow[centre:rows * p.grid:p.grid, centre:cols * p.grid:p.grid]
+                residual = now(np.where(valid[..., None], cell_flow - at, np.nan))
+            mask, regions = grow_to_extent(labels, regions, p.grid, curr, likelihood,
+                                           threshold=p.threshold, reach=p.extent_reach,
+                                           static_fraction=p.extent_static,
+                                           residual=residual, inside=self._inside_u8)
         if not self._road_warned and self.road.known and self.ground is None \
                 and cell_mask[self._cell_valid].mean() > FLOODED:
             self._road_warned = True
@@ -847,7 +870,8 @@ class MotionDetector:
                           "are the poses world_from_cam and the road right for this world "
                           "frame? road='auto' estimates the road", stacklevel=3)
         grid = Grid(p.grid, self._centres, cell_flow, measured, valid)
-        return Detection(likelihood, mask, maps, flow, grid, regions, res.static_camera)
+        return Detection(likelihood, mask, maps, flow, grid, regions, res.static_camera,
+                         cells_now)
 
 
 def _pair_item(item) -> tuple:

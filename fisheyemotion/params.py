@@ -119,6 +119,14 @@ class Params:
         Cells a detected region may grow by into neighbours whose residual flow (measured minus
         the static scene's) is like the region's (:mod:`fisheyemotion.grow`): the object's flow
         boundary becomes the region's. 0 disables it.
+    extent_reach : float
+        Each region of the mask grown to its object's extent in the current frame, by a marker
+        watershed on that frame (:mod:`fisheyemotion.extent`), at most this share of the
+        region's larger box side beyond its box; needs the frames (not :meth:`detect_flow`).
+        0 disables it (``Params.paper()``). Chosen on the tuning street (docs/evaluation.md,
+        *Extent*).
+    extent_static : float
+        Pixels scored below this share of ``threshold`` are background to the growth.
     ground_contact : bool
         Regions led by the anti-parallel term that stand on the road (the static range just
         below their lower edge is about their own) are static structure: their anti-parallel
@@ -223,6 +231,8 @@ class Params:
     flow_sigma: float = 0.25
     ground_contact: bool = True
     grow: int = 0
+    extent_reach: float = 0.5
+    extent_static: float = 0.1
     photometric_check: bool = True
     photometric_margin: float = 10.0
     photometric_tolerance: float = 0.25
@@ -262,7 +272,7 @@ class Params:
         for name in ("lambda_h", "lambda_p", "lambda_p_ratio", "min_baseline", "epipole_margin",
                      "threshold", "saturation", "fb_tolerance", "fb_relative", "min_texture",
                      "min_parallax", "seed_threshold", "extend_threshold", "contact_ratio",
-                     "contact_arc", "range_consistency",
+                     "contact_arc", "range_consistency", "extent_reach", "extent_static",
                      "photometric_margin", "photometric_tolerance",
                      "significance", "flow_sigma", "refine_tolerance"):
             v = getattr(self, name)
@@ -309,7 +319,8 @@ class Params:
         ``docs/evaluation.md``). The paper does not state its likelihood threshold; this uses
         0.005."""
         return cls(**{"flow_prior": "none", "scene_prior": False, "ground_contact": False,
-                      "significance": 0.0, "grow": 0, "photometric_check": False,
+                      "significance": 0.0, "grow": 0, "extent_reach": 0.0,
+                      "photometric_check": False,
                       "fb_check": False,
                       "frame_gap": 1, "min_texture": 0.0,
                       "visibility_check": False, "threshold": 0.005, "temporal_decay": 0.0,

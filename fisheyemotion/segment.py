@@ -35,8 +35,9 @@ class Region(NamedTuple):
 def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, grid: int,
                   min_area: int, age: NDArray | None = None, persistence: int = 1,
                   seed_threshold: float = 0.0, extend_threshold: float = 0.0,
-                  seeds: NDArray[np.bool_] | None = None
-                  ) -> tuple[NDArray[np.bool_], list[Region]]:
+                  seeds: NDArray[np.bool_] | None = None, with_labels: bool = False
+                  ) -> tuple[NDArray[np.bool_], list[Region]] | tuple[
+                      NDArray[np.bool_], list[Region], NDArray[np.int32]]:
     """Cells above ``threshold`` grouped 8-connected; regions under ``min_area`` pixels dropped,
     and, with ``age``, regions none of whose cells has been moving ``persistence`` times.
 
@@ -61,6 +62,8 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
     -------
     mask : ndarray of bool, shape (rows, cols)
     regions : list of Region, largest first
+    labels : ndarray of int32, shape (rows, cols)
+        With ``with_labels``: each region's cells by its ``label`` (0 elsewhere).
     """
     values = np.nan_to_num(cell_likelihood, nan=0.0)
     if seed_threshold > threshold:  # hysteresis: regions need a cell above the seed threshold
@@ -72,11 +75,12 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
     if 0 < extend_threshold < threshold:
         # Only regions that count as detections by themselves seed an extension: a speck under
         # min_area must not grow past it through weak cells.
-        kept, _ = _kept_regions(moving, values, grid, min_area, None, 1)
+        kept, _, _ = _kept_regions(moving, values, grid, min_area, None, 1)
         moving = _extended(kept, values > extend_threshold)
     if seeds is not None:
         moving = _extended(seeds & moving, moving)
-    return _kept_regions(moving, values, grid, min_area, age, persistence)
+    mask, regions, labels = _kept_regions(moving, values, grid, min_area, age, persistence)
+    return (mask, regions, labels) if with_labels else (mask, regions)
 
 
 def _extended(seeds: NDArray[np.bool_], weak: NDArray[np.bool_]) -> NDArray[np.bool_]:
@@ -91,7 +95,7 @@ def _extended(seeds: NDArray[np.bool_], weak: NDArray[np.bool_]) -> NDArray[np.b
 
 def _kept_regions(moving: NDArray[np.bool_], values: NDArray[np.float64], grid: int,
                   min_area: int, age: NDArray | None, persistence: int
-                  ) -> tuple[NDArray[np.bool_], list[Region]]:
+                  ) -> tuple[NDArray[np.bool_], list[Region], NDArray[np.int32]]:
     """The regions of ``moving`` of at least ``min_area`` pixels (and ``persistence``)."""
     # OpenCV's labelling gives each region's bounding box and size in the same pass, and keeps
     # scipy (0.17 s to import, through scikit-image's label) off a process's first detection.
@@ -99,7 +103,7 @@ def _kept_regions(moving: NDArray[np.bool_], values: NDArray[np.float64], grid: 
         moving.astype(np.uint8), connectivity=8, ltype=cv2.CV_32S)
     n -= 1  # label 0 is the background
     if n == 0:
-        return np.zeros_like(moving), []
+        return np.zeros_like(moving), [], labels
     # Region properties for all labels at once (regionprops' per-region objects cost ~80 us each).
     flat = labels.ravel()
     cells = stats[1:, cv2.CC_STAT_AREA].astype(np.int64)
@@ -120,6 +124,8 @@ def _kept_regions(moving: NDArray[np.bool_], values: NDArray[np.float64], grid: 
             mean_likelihood=float(mean[i]),
             centroid=(float(cx[i]) * grid + (grid - 1) / 2, float(cy[i]) * grid + (grid - 1) / 2),
         ))
-    regions.sort(key=lambda r: -r.area)
+    order = sorted(range(len(regions)), key=lambda j: -regions[j].area)
+    relabel = np.zeros(n + 1, np.int32)
+    relabel[np.flatnonzero(kept)[order] + 1] = np.arange(1, len(order) + 1)
     keep = np.concatenate([[False], kept])[labels]
-    return keep, [r._replace(label=i + 1) for i, r in enumerate(regions)]
+    return keep, [regions[j]._replace(label=i + 1) for i, j in enumerate(order)], relabel[labels]

@@ -509,7 +509,7 @@ def test_photometric_check_removes_a_flow_error_on_static_structure_and_keeps_th
     now[np.round(v + true[v, u, 1]).astype(int), np.round(u + true[v, u, 0]).astype(int)] = True
     masks = {}
     for check in (False, True):
-        det = fm.MotionDetector(cam, params=fm.Params(photometric_check=check),
+        det = fm.MotionDetector(cam, params=fm.Params(photometric_check=check, extent_reach=0),
                                 roi=renderer.roi())
         masks[check] = det.detect_flow(flow, f0.pose, f3.pose, prev=g0, curr=g3).mask > 0
     car = f3.moving > 0

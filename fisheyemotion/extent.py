@@ -1,0 +1,170 @@
+"""Detected regions grown to their object's extent in the current frame (marker watershed).
+
+A region of the mask is the cells whose deviations pass the threshold: where the object's
+surface is textured enough to be scored and its flow is measured off the static scene. Its plain
+parts (cells without texture are not scored) and the cells whose flow Farneback's or DIS's
+smoothing pulled towards the background stay below, so a detection covers part of its object,
+in blocks of cells. :func:`grow_to_extent` grows each region to where the image of the frame the
+mask belongs to says its object ends:
+
+1. Around each region, a crop of the frame reaching ``reach`` times the region's larger box
+   side beyond its box (at least ``min_reach`` pixels): the growth's limit.
+2. Markers: the region's pixels eroded by one pixel (the object); the crop's border and every
+   pixel of the crop outside the region
+   whose likelihood is below ``static_fraction`` times the threshold (the background): scored
+   far below the threshold, or not scored at all (no texture, outside the domain), and, given
+   the cells' residual flows (measured minus the static scene's), the pixels of cells that
+   move less than ``SLOWER`` times the region's mean residual. Only pixels with weak or strong
+   deviations that move about as much as the object are left to the flooding.
+3. OpenCV's marker watershed (``cv2.watershed``: Meyer's flooding, ordered by the grey-level
+   difference to the neighbours, on the frame smoothed by a Gaussian of 1 px) gives each of
+   them to the object or to the background. The object's pixels and the holes they enclose
+   (what the crop's border cannot reach around them: an object's plain, unscored middle) join
+   the region.
+
+A region only grows: every pixel it had stays (the eroded ring is flooded like the rest, and the
+union is taken). It stops at the object's image boundary where that is the strongest edge
+between the region and the background markers, and at the crop's border. Unscored pixels are
+background because a plain wall or floor beside a detected arm (the real Aria clips) would otherwise be
+flooded whole: they join only as enclosed holes. Other regions inside a crop are flooded like
+unknown pixels. The likelihood map is not changed: the mask can hold pixels below the
+threshold.
+
+Measured in ``docs/evaluation.md`` (*Extent*): coverage and pixel IoU up in every scene group,
+with both flows and the exact one; false-positive frames unchanged (a false region grows too,
+which shows in the static pixels flagged).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from .segment import Region
+
+__all__ = ["grow_to_extent"]
+
+#: Standard deviation (pixels) of the Gaussian the frame is smoothed by before the flooding.
+SMOOTHING = 1.0
+#: A cell whose residual flow is shorter than this share of the region's mean residual is
+#: background: static, or slower than the object (the real kitchen clip's bowl, whose contents
+#: the moving spoon stirs, would be flooded from the spoon otherwise; docs/evaluation.md).
+SLOWER = 0.35
+_CROSS = np.ones((3, 3), np.uint8)
+
+
+def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
+                   gray: NDArray[np.uint8], likelihood: NDArray[np.float32], *,
+                   threshold: float, reach: float, static_fraction: float,
+                   residual: NDArray[np.float64] | None = None,
+                   inside: NDArray[np.uint8] | None = None, min_reach: int = 8
+                   ) -> tuple[NDArray[np.uint8], list[Region]]:
+    """The mask of ``regions`` grown to their objects' extent in ``gray`` (module doc).
+
+    Parameters
+    ----------
+    labels : ndarray of int32, shape (rows, cols)
+        Cells of each region, by its ``label`` (0: none); ``rows * grid`` and ``cols * grid``
+        at most the frame's size.
+    regions : list of Region
+        As :func:`fisheyemotion.segment.segment_cells` gives them.
+    grid : int
+        Cell size, pixels.
+    gray : ndarray of uint8, shape (H, W)
+        The frame the mask belongs to.
+    likelihood : ndarray of float32, shape (H, W)
+        The motion likelihood on that frame's pixels, 0 where not scored.
+    threshold : float
+        The likelihood threshold of the regions.
+    reach : float
+        How far a region may grow beyond its box, as a share of its box's larger side (> 0).
+    static_fraction : float
+        Pixels below this share of ``threshold`` are background.
+    residual : ndarray, shape (rows, cols, 2), optional
+        Each cell's residual flow (measured minus the static scene's, pixels; NaN where
+        unknown): cells shorter than ``SLOWER`` times the region's mean are background.
+    inside : ndarray of uint8, shape (H, W), optional
+        255 where a pixel may be moving (the camera's domain and the region of interest).
+    min_reach : int
+        Pixels a region may grow by at least.
+
+    Returns
+    -------
+    mask : ndarray of uint8, shape (H, W)
+        255 on the grown regions.
+    regions : list of Region
+        The same regions (label, mean likelihood of their cells) with the box, area (pixels)
+        and centroid of their grown pixels, largest first.
+    """
+    h, w = gray.shape
+    mask = np.zeros((h, w), np.uint8)
+    if not regions:
+        return mask, []
+    smooth = cv2.GaussianBlur(gray, (0, 0), SMOOTHING)
+    static_below = np.float32(static_fraction * threshold)
+    grown = []
+    for region in regions:
+        x, y, bw, bh = region.bbox
+        r = max(min_reach, int(reach * max(bw, bh)))
+        x0, y0 = max(0, x - r), max(0, y - r)
+        x1, y1 = min(w, x + bw + r), min(h, y + bh + r)
+        crop = (y0, y1, x0, x1)
+        cells = slice(y0 // grid, -(-y1 // grid)), slice(x0 // grid, -(-x1 // grid))
+        own = _on_pixels(labels[cells] == region.label, grid, crop)  # its cells, upsampled
+        if inside is not None:
+            own &= inside[y0:y1, x0:x1] // 255
+        markers = np.zeros(own.shape, np.int32)
+        lik = likelihood[y0:y1, x0:x1]
+        background = lik < static_below
+        if residual is not None:
+            here = labels == region.label
+            mean = np.nanmean(residual[here], axis=0) if here.any() else np.full(2, np.nan)
+            if np.isfinite(mean).all():
+                with np.errstate(invalid="ignore"):
+                    slower = (np.linalg.norm(residual[cells], axis=-1)
+                              < SLOWER * np.linalg.norm(mean))
+                background |= _on_pixels(slower, grid, crop) > 0
+        markers[background & (own == 0)] = 2
+        markers[0, :] = markers[-1, :] = 2
+        markers[:, 0] = markers[:, -1] = 2
+        core = cv2.erode(own, _CROSS)
+        markers[(core if core.any() else own) > 0] = 1
+        flooded = cv2.watershed(cv2.cvtColor(smooth[y0:y1, x0:x1], cv2.COLOR_GRAY2BGR),
+                                markers)
+        pixels = _filled((flooded == 1) | (own > 0))
+        if inside is not None:
+            pixels &= inside[y0:y1, x0:x1] > 0
+        binary = pixels.view(np.uint8)
+        mask[y0:y1, x0:x1] |= binary * np.uint8(255)
+        m = cv2.moments(binary, binaryImage=True)
+        if m["m00"] == 0:  # nothing of it inside (cannot happen with a region of the mask)
+            grown.append(region)
+            continue
+        bx, by, gw, gh = cv2.boundingRect(binary)
+        grown.append(region._replace(
+            bbox=(x0 + bx, y0 + by, gw, gh), area=int(m["m00"]),
+            centroid=(m["m10"] / m["m00"] + x0, m["m01"] / m["m00"] + y0)))
+    grown.sort(key=lambda reg: -reg.area)
+    return mask, grown
+
+
+def _on_pixels(cells: NDArray[np.bool_], grid: int, crop: tuple[int, int, int, int]
+               ) -> NDArray[np.uint8]:
+    """Cells (those of ``crop``'s rows and columns of cells) as 0/1 pixels of ``crop`` =
+    ``(y0, y1, x0, x1)``; 0 where the crop reaches past the last whole cell."""
+    y0, y1, x0, x1 = crop
+    up = np.repeat(np.repeat(cells.astype(np.uint8), grid, axis=0), grid, axis=1)
+    up = up[y0 - (y0 // grid) * grid:, x0 - (x0 // grid) * grid:]
+    out = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    rows, cols = min(out.shape[0], up.shape[0]), min(out.shape[1], up.shape[1])
+    out[:rows, :cols] = up[:rows, :cols]
+    return out
+
+
+def _filled(pixels: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """``pixels`` with their holes filled: what the crop's border cannot reach around them."""
+    outside = cv2.copyMakeBorder((~pixels).view(np.uint8), 1, 1, 1, 1, cv2.BORDER_CONSTANT,
+                                 value=1)
+    cv2.floodFill(outside, None, (0, 0), 2, flags=8)
+    return outside[1:-1, 1:-1] != 2
