@@ -53,6 +53,7 @@ THREADED = ("flow_alone", "paper_pipeline", "default_pipeline", "default_after_f
 @pytest.mark.parametrize("name", CONFIGS)
 @pytest.mark.parametrize("stage", ["flow_alone", "paper_pipeline", "default_pipeline",
                                    "non_flow", "default_non_flow", "default_after_flow",
+                                   "no_extent_after_flow",
                                    "ray_lookup", "constraints", "segmentation"])
 def test_detect_stage(benchmark, frames, name, stage, threads):
     """One frame pair (3 apart) at 640x480 with cv2 pinned to ``threads``; the stages besides
@@ -89,8 +90,11 @@ def test_detect_stage(benchmark, frames, name, stage, threads):
             return (flow, p0, p1), {"prev": g0, "curr": g1, "stream": True}
 
         benchmark.pedantic(det.detect_flow, setup=warm, rounds=200, warmup_rounds=3)
-    elif stage == "default_after_flow":  # the same, each round right after a real flow call
-        det = fm.MotionDetector(CAM, params=fm.Params(**CONFIGS[name]), roi=roi)
+    elif stage in ("default_after_flow", "no_extent_after_flow"):
+        # the same, each round right after a real flow call (and without the growth of the
+        # regions to their objects' extent: its cost is the difference)
+        extent = {} if stage == "default_after_flow" else {"extent_reach": 0.0}
+        det = fm.MotionDetector(CAM, params=fm.Params(**CONFIGS[name], **extent), roi=roi)
         flow = det.flow(g0, g1, p0, p1)
         for _ in range(3):
             det.detect_flow(flow, p0, p1, prev=g0, curr=g1, stream=True)
