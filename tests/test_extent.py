@@ -141,3 +141,13 @@ def test_extent_parameters_are_checked_and_off_in_the_papers_pipeline():
     for name in ("extent_reach", "extent_static"):
         with pytest.raises(ValueError, match=name):
             fm.Params(**{name: -1.0})
+
+
+def test_the_documented_params_files_turn_the_extent_off_or_add_the_extension():
+    from pathlib import Path
+
+    folder = Path(__file__).resolve().parents[1] / "data" / "params"
+    off, more = (fm.Params.load(folder / f) for f in ("no_extent.yaml", "coverage.yaml"))
+    assert off.replace(extent_reach=fm.Params().extent_reach) == fm.Params()
+    assert off.extent_reach == 0.0
+    assert more == fm.Params(extend_threshold=0.002)
