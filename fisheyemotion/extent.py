@@ -103,6 +103,9 @@ def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
         return mask, []
     smooth = cv2.GaussianBlur(gray, (0, 0), SMOOTHING)
     static_below = np.float32(static_fraction * threshold)
+    if residual is not None:
+        with np.errstate(invalid="ignore"):
+            speed = np.linalg.norm(residual, axis=-1)
     grown = []
     for region in regions:
         x, y, bw, bh = region.bbox
@@ -111,19 +114,18 @@ def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
         x1, y1 = min(w, x + bw + r), min(h, y + bh + r)
         crop = (y0, y1, x0, x1)
         cells = slice(y0 // grid, -(-y1 // grid)), slice(x0 // grid, -(-x1 // grid))
-        own = _on_pixels(labels[cells] == region.label, grid, crop)  # its cells, upsampled
+        here = labels[cells] == region.label  # its cells (all inside the crop)
+        own = _on_pixels(here, grid, crop)    # upsampled
         if inside is not None:
             own &= inside[y0:y1, x0:x1] // 255
         markers = np.zeros(own.shape, np.int32)
         lik = likelihood[y0:y1, x0:x1]
         background = lik < static_below
         if residual is not None:
-            here = labels == region.label
-            mean = np.nanmean(residual[here], axis=0) if here.any() else np.full(2, np.nan)
+            mean = np.nanmean(residual[cells][here], axis=0) if here.any() else np.full(2, np.nan)
             if np.isfinite(mean).all():
                 with np.errstate(invalid="ignore"):
-                    slower = (np.linalg.norm(residual[cells], axis=-1)
-                              < SLOWER * np.linalg.norm(mean))
+                    slower = speed[cells] < SLOWER * np.linalg.norm(mean)
                 background |= _on_pixels(slower, grid, crop) > 0
         markers[background & (own == 0)] = 2
         markers[0, :] = markers[-1, :] = 2
