@@ -104,8 +104,7 @@ def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
     smooth = cv2.GaussianBlur(gray, (0, 0), SMOOTHING)
     static_below = np.float32(static_fraction * threshold)
     if residual is not None:
-        with np.errstate(invalid="ignore"):
-            speed = np.linalg.norm(residual, axis=-1)
+        speed = np.sqrt(residual[..., 0] ** 2 + residual[..., 1] ** 2)
     grown = []
     for region in regions:
         x, y, bw, bh = region.bbox
@@ -122,7 +121,9 @@ def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
         lik = likelihood[y0:y1, x0:x1]
         background = lik < static_below
         if residual is not None:
-            mean = np.nanmean(residual[cells][here], axis=0) if here.any() else np.full(2, np.nan)
+            own_residual = residual[cells][here]
+            known = own_residual[np.isfinite(own_residual).all(axis=-1)]
+            mean = known.mean(axis=0) if len(known) else np.full(2, np.nan)
             if np.isfinite(mean).all():
                 with np.errstate(invalid="ignore"):
                     slower = speed[cells] < SLOWER * np.linalg.norm(mean)
@@ -156,9 +157,13 @@ def _on_pixels(cells: NDArray[np.bool_], grid: int, crop: tuple[int, int, int, i
     """Cells (those of ``crop``'s rows and columns of cells) as 0/1 pixels of ``crop`` =
     ``(y0, y1, x0, x1)``; 0 where the crop reaches past the last whole cell."""
     y0, y1, x0, x1 = crop
-    up = np.repeat(np.repeat(cells.astype(np.uint8), grid, axis=0), grid, axis=1)
-    up = up[y0 - (y0 // grid) * grid:, x0 - (x0 // grid) * grid:]
     out = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    if cells.size == 0:
+        return out
+    small = cells.view(np.uint8) if cells.dtype == np.bool_ else cells.astype(np.uint8)
+    up = cv2.resize(small, (small.shape[1] * grid, small.shape[0] * grid),
+                    interpolation=cv2.INTER_NEAREST)
+    up = up[y0 - (y0 // grid) * grid:, x0 - (x0 // grid) * grid:]
     rows, cols = min(out.shape[0], up.shape[0]), min(out.shape[1], up.shape[1])
     out[:rows, :cols] = up[:rows, :cols]
     return out
