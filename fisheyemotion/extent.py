@@ -9,13 +9,13 @@ mask belongs to says its object ends:
 
 1. Around each region, a crop of the frame reaching ``reach`` times the region's larger box
    side beyond its box (at least ``min_reach`` pixels): the growth's limit.
-2. Markers: the region's pixels eroded by one pixel (the object); the crop's border and every
-   pixel of the crop outside the region
-   whose likelihood is below ``static_fraction`` times the threshold (the background): scored
-   far below the threshold, or not scored at all (no texture, outside the domain), and, given
-   the cells' residual flows (measured minus the static scene's), the pixels of cells that
-   move less than ``SLOWER`` times the region's mean residual. Only pixels with weak or strong
-   deviations that move about as much as the object are left to the flooding.
+2. Markers: the region's pixels eroded by one pixel (the object); the crop's border, every
+   pixel of the crop outside the region whose likelihood is below ``static_fraction`` times the
+   threshold (scored far below it, or not scored at all: no texture, outside the domain) and,
+   given the cells' residual flows (measured minus the static scene's), the pixels of cells
+   that move less than ``SLOWER`` times the region's mean residual (the background). Only
+   pixels with weak or strong deviations that move about as much as the object are left to the
+   flooding.
 3. OpenCV's marker watershed (``cv2.watershed``: Meyer's flooding, ordered by the grey-level
    difference to the neighbours, on the frame smoothed by a Gaussian of 1 px) gives each of
    them to the object or to the background. The object's pixels and the holes they enclose
@@ -25,14 +25,14 @@ mask belongs to says its object ends:
 A region only grows: every pixel it had stays (the eroded ring is flooded like the rest, and the
 union is taken). It stops at the object's image boundary where that is the strongest edge
 between the region and the background markers, and at the crop's border. Unscored pixels are
-background because a plain wall or floor beside a detected arm (the real Aria clips) would otherwise be
-flooded whole: they join only as enclosed holes. Other regions inside a crop are flooded like
+background because a plain wall or floor beside a detected arm (the real Aria clips) would
+otherwise be flooded whole: they join only as enclosed holes. Other regions inside a crop are flooded like
 unknown pixels. The likelihood map is not changed: the mask can hold pixels below the
 threshold.
 
 Measured in ``docs/evaluation.md`` (*Extent*): coverage and pixel IoU up in every scene group,
-with both flows and the exact one; false-positive frames unchanged (a false region grows too,
-which shows in the static pixels flagged).
+with both flows and the exact one; detection unchanged, false-positive frames within a point (a
+false region grows too, which shows in the static pixels flagged).
 """
 
 from __future__ import annotations
