@@ -41,6 +41,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from .flow import grid_upsample
 from .segment import Region
 
 __all__ = ["grow_to_extent"]
@@ -155,18 +156,14 @@ def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
 def _on_pixels(cells: NDArray[np.bool_], grid: int, crop: tuple[int, int, int, int]
                ) -> NDArray[np.uint8]:
     """Cells (those of ``crop``'s rows and columns of cells) as 0/1 pixels of ``crop`` =
-    ``(y0, y1, x0, x1)``; 0 where the crop reaches past the last whole cell."""
+    ``(y0, y1, x0, x1)``, upsampled as the mask is (:func:`fisheyemotion.flow.grid_upsample`:
+    pixels past the last whole cell take its value)."""
     y0, y1, x0, x1 = crop
-    out = np.zeros((y1 - y0, x1 - x0), np.uint8)
-    if cells.size == 0:
-        return out
-    small = cells.view(np.uint8) if cells.dtype == np.bool_ else cells.astype(np.uint8)
-    up = cv2.resize(small, (small.shape[1] * grid, small.shape[0] * grid),
-                    interpolation=cv2.INTER_NEAREST)
-    up = up[y0 - (y0 // grid) * grid:, x0 - (x0 // grid) * grid:]
-    rows, cols = min(out.shape[0], up.shape[0]), min(out.shape[1], up.shape[1])
-    out[:rows, :cols] = up[:rows, :cols]
-    return out
+    top, left = (y0 // grid) * grid, (x0 // grid) * grid
+    rows, cols = cells.shape
+    up = grid_upsample(cells.view(np.uint8), grid, max(x1 - left, cols * grid),
+                       max(y1 - top, rows * grid))
+    return np.ascontiguousarray(up[y0 - top:y1 - top, x0 - left:x1 - left])
 
 
 def _filled(pixels: NDArray[np.bool_]) -> NDArray[np.bool_]:

@@ -110,6 +110,26 @@ def test_cells_slower_than_the_region_are_background():
     assert mask[lower].mean() > 0.9
 
 
+def test_a_region_keeps_the_pixels_past_the_last_whole_cell():
+    """On a frame whose size is not a multiple of the grid the mask's last pixels take the last
+    cells' values (``grid_upsample``); the grown mask keeps them."""
+    from fisheyemotion.flow import grid_upsample
+
+    h, w = H + 3, W + 4                   # 3 rows and 4 columns past the last whole cell
+    rng = np.random.default_rng(1)
+    gray = rng.integers(20, 60, (h, w)).astype(np.uint8)
+    cells = np.full((H // GRID, W // GRID), 0.05 * THRESHOLD)
+    cells[-4:, -5:] = 2 * THRESHOLD       # a region in the bottom-right corner
+    _, regions, labels = segment_cells(cells, threshold=THRESHOLD, grid=GRID, min_area=0,
+                                       with_labels=True)
+    likelihood = grid_upsample(cells.astype(np.float32), GRID, w, h)
+    mask, _ = grow_to_extent(labels, regions, GRID, gray, likelihood, threshold=THRESHOLD,
+                             reach=0.5, static_fraction=0.1)
+    before = grid_upsample((labels > 0).astype(np.uint8), GRID, w, h) > 0
+    assert before[H:, :].any() and before[:, W:].any()
+    assert (mask > 0)[before].all()
+
+
 def test_no_regions_no_mask():
     gray, cells = _scene()
     mask, regions = grow_to_extent(np.zeros(cells.shape, np.int32), [], GRID, gray,
