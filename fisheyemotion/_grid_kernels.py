@@ -137,6 +137,7 @@ def sample_medians(cell, rng, start, pos, buf, med, out):
 
 
 _F32_MAX = float(np.finfo(np.float32).max)
+_F64_MAX = float(np.finfo(np.float64).max)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -208,3 +209,105 @@ def block_residuals(prev, curr, flow, rows, cols, grid, shift, out):
                 bottom = curr[yb, xa] + fx * (np.float64(curr[yb, xb]) - curr[yb, xa])
                 total += abs(prev[y, x] - (top + fy * (bottom - top)))
         out[i] = total * inv
+
+
+@numba.njit(cache=True, nogil=True)
+def _nan_percentile(values, count, q):
+    """The ``q``-th percentile (linear interpolation, as ``np.nanpercentile``) of the finite
+    entries of ``values`` (sorted in place, the first ``count`` finite ones); NaN if none."""
+    if count == 0:
+        return np.nan
+    v = np.sort(values[:count])
+    pos = (count - 1) * (q / 100.0)
+    lo = int(np.floor(pos))
+    hi = min(lo + 1, max(count - 1, 0))
+    return v[lo] + (pos - np.floor(pos)) * (v[hi] - v[lo])
+
+
+@numba.njit(cache=True, nogil=True)
+def led_regions(labels, n, share, candidates):
+    """Regions ``1..n`` of ``labels`` (rows, cols) whose mean ``share`` (NaN counts 0) is at
+    least 0.5 kept in ``candidates`` (rows, cols, filled; 0 elsewhere); returns whether any
+    was (``ground_contact.standing_regions``; sums in ``np.bincount``'s order)."""
+    rows, cols = labels.shape
+    total = np.zeros(n + 1)
+    cells = np.zeros(n + 1, np.int64)
+    for r in range(rows):
+        for c in range(cols):
+            k = labels[r, c]
+            s = share[r, c]
+            if s != s:
+                s = 0.0
+            elif s > _F64_MAX or s < -_F64_MAX:  # as np.nan_to_num
+                s = _F64_MAX if s > 0 else -_F64_MAX
+            total[k] += s
+            cells[k] += 1
+    led = np.zeros(n + 1, np.bool_)
+    anyled = False
+    for k in range(1, n + 1):
+        led[k] = total[k] / max(cells[k], 1) >= 0.5
+        anyled |= led[k]
+    for r in range(rows):
+        for c in range(cols):
+            k = labels[r, c]
+            candidates[r, c] = k if led[k] else 0
+    return anyled
+
+
+@numba.njit(cache=True, nogil=True)
+def column_ratios(labels, ranges, er, ec, lam, direction, good, grid, steps, out):
+    """``ground_contact.contact_ratios``' walk below the edge cells ``(er, ec)`` (range
+    ``lam``, unit image direction of the world vertical ``direction`` (N, 2), ``good`` where
+    it is defined): the median of the ranges met in ``steps`` cells (not of the edge's region)
+    over ``lam``, the largest per region and column into ``out`` (n + 1, cols), NaN-initialised.
+    numpy's arithmetic, operation for operation."""
+    rows, cols = labels.shape
+    samples = np.empty(steps)
+    off = (grid - 1) / 2
+    for i in range(er.shape[0]):
+        r0, c0 = er[i], ec[i]
+        own = labels[r0, c0]
+        cx, cy = c0 * grid + off, r0 * grid + off
+        k = 0
+        if good[i]:
+            for j in range(1, steps + 1):
+                ax = cx + direction[i, 0] * grid * j
+                ay = cy + direction[i, 1] * grid * j
+                c = np.floor(ax / grid)
+                r = np.floor(ay / grid)
+                if c >= 0 and c < cols and r >= 0 and r < rows:
+                    ri, ci = int(r), int(c)
+                    if labels[ri, ci] != own:
+                        v = ranges[ri, ci]
+                        if v == v:
+                            samples[k] = v
+                            k += 1
+        ratio = _nan_percentile(samples, k, 50.0) / lam[i]
+        if np.isfinite(ratio):
+            before = out[own, c0]
+            out[own, c0] = ratio if before != before else max(before, ratio)
+
+
+@numba.njit(cache=True, nogil=True)
+def standing_cells(candidates, per_column, ratio, out):
+    """Each cell of a candidate region (``candidates``, rows x cols) stands where its column's
+    ratio (``per_column`` (n + 1, cols); a column with none takes its region's 75th percentile)
+    is below ``ratio``: ``out`` (rows, cols) bool, filled."""
+    n1, cols = per_column.shape
+    decided = np.empty((n1, cols))
+    buf = np.empty(cols)
+    for k in range(n1):
+        m = 0
+        for c in range(cols):
+            v = per_column[k, c]
+            if v == v:
+                buf[m] = v
+                m += 1
+        region = _nan_percentile(buf, m, 75.0)
+        for c in range(cols):
+            v = per_column[k, c]
+            decided[k, c] = region if v != v else v
+    for r in range(candidates.shape[0]):
+        for c in range(cols):
+            k = candidates[r, c]
+            out[r, c] = k > 0 and decided[k, c] < ratio
