@@ -255,11 +255,12 @@ def led_regions(labels, n, share, candidates):
 
 
 @numba.njit(cache=True, nogil=True)
-def column_ratios(labels, ranges, er, ec, lam, direction, good, grid, steps, out):
+def column_ratios(labels, ranges, er, ec, lam, direction, good, grid, steps, q, out):
     """``ground_contact.contact_ratios``' walk below the edge cells ``(er, ec)`` (range
     ``lam``, unit image direction of the world vertical ``direction`` (N, 2), ``good`` where
-    it is defined): the median of the ranges met in ``steps`` cells (not of the edge's region)
-    over ``lam``, the largest per region and column into ``out`` (n + 1, cols), NaN-initialised.
+    it is defined): the ``q``-th percentile of the ranges met in ``steps`` cells (not of the
+    edge's region) over ``lam``, the largest per region and column into ``out`` (n + 1, cols),
+    NaN-initialised.
     numpy's arithmetic, operation for operation."""
     rows, cols = labels.shape
     samples = np.empty(steps)
@@ -282,7 +283,7 @@ def column_ratios(labels, ranges, er, ec, lam, direction, good, grid, steps, out
                         if v == v:
                             samples[k] = v
                             k += 1
-        ratio = _nan_percentile(samples, k, 50.0) / lam[i]
+        ratio = _nan_percentile(samples, k, q) / lam[i]
         if np.isfinite(ratio):
             before = out[own, c0]
             out[own, c0] = ratio if before != before else max(before, ratio)

@@ -33,7 +33,11 @@ from .calib.base import CameraModel
 from .road import Road
 from .static_scene import world_points
 
-__all__ = ["contact_ratios", "standing_regions"]
+__all__ = ["WALK_PERCENTILE", "contact_ratios", "standing_regions"]
+
+#: The percentile of the ranges met below an edge cell that its column's ratio is taken from
+#: (50: the median).
+WALK_PERCENTILE = 50.0
 
 
 def contact_ratios(labels: NDArray[np.intp], ranges: NDArray[np.float64],
@@ -89,7 +93,8 @@ def contact_ratios(labels: NDArray[np.intp], ranges: NDArray[np.float64],
     # The walk down the vertical, the median met and the largest per column: one numba pass.
     from ._grid_kernels import column_ratios  # numba on first use: a light import
 
-    column_ratios(labels, ranges, er, ec, lam, direction, good, int(grid), int(steps), out)
+    column_ratios(labels, ranges, er, ec, lam, direction, good, int(grid), int(steps),
+                  float(WALK_PERCENTILE), out)
     return out
 
 
