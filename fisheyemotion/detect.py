@@ -109,6 +109,7 @@ class _Measured(NamedTuple):
     road: Road
     prior_road: Road | None  # the road of the pair's prior, where the growth needs it
     stream: bool
+    check_curr: bool  # ``curr`` is the stream's newest frame: check its texture for later
 
 
 class LazyMaps(Mapping):
@@ -265,6 +266,11 @@ class MotionDetector:
         self._history: deque[tuple[NDArray[np.uint8], NDArray[np.float64]]] = deque(
             maxlen=self.params.frame_gap)
         self._ranges = RangeMemory(self.params.frame_gap + 1)
+        # The texture check's cells of the last frames (gray image, cells): a stream's frame is
+        # checked when it is the current frame, in the decision, and read when it is the
+        # previous one (MotionDetector.stream decides beside the next pair's flow).
+        self._textures: deque[tuple[NDArray[np.uint8], NDArray[np.bool_]]] = deque(
+            maxlen=2 * self.params.frame_gap + 1)
 
     def detect(self, prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray,
                pose1: NDArray) -> Detection:
@@ -424,6 +430,7 @@ class MotionDetector:
         """Forget the stream's previous frames, its temporal state, its scene model and its
         estimated poses."""
         self._history.clear()
+        self._textures.clear()
         self._ranges.clear()
         self._temporal = None
         self._tracker, self._last_mask, self.last_pose = None, None, None
@@ -520,10 +527,18 @@ class MotionDetector:
         return keep
 
     def _textured_cells(self, gray: NDArray[np.uint8]) -> NDArray[np.bool_]:
-        """Cells whose mean Sobel gradient magnitude reaches ``params.min_texture``."""
+        """Cells whose mean Sobel gradient magnitude reaches ``params.min_texture`` (kept for
+        the last frames: a stream's frame is checked once, as the current frame or else as
+        the previous one)."""
+        for i, (seen, cells) in enumerate(tuple(self._textures)):
+            if seen is gray:  # a frame is a stream's previous frame once
+                del self._textures[i]
+                return cells
         gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)
         gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
-        return grid_average(cv2.magnitude(gx, gy), self.params.grid) >= self.params.min_texture
+        cells = grid_average(cv2.magnitude(gx, gy), self.params.grid) >= self.params.min_texture
+        self._textures.append((gray, cells))
+        return cells
 
     def _consistent_cells(self, flow, cell_flow, backward) -> NDArray[np.bool_]:
         """Cells whose mean forward-backward error is within tolerance (``cell_flow``: the
@@ -596,7 +611,9 @@ class MotionDetector:
                                    static)
         return _Measured(flow, cell_flow, res, likelihood, valid, rays1, t0, t1, gray, curr,
                          sigma, static_flow, self.road,
-                         self._prior_road(t0, t1) if p.grow > 0 else None, stream)
+                         self._prior_road(t0, t1) if p.grow > 0 else None, stream,
+                         p.min_texture > 0 and curr is not None and bool(self._history)
+                         and self._history[-1][0] is curr)
 
     def _decide(self, m: _Measured) -> Detection:
         """A measured pair's result: the photometric check's seeds, the growth and the
@@ -627,6 +644,8 @@ class MotionDetector:
                                                  curr, m.sigma, measured, m.road)
         if p.grow > 0 and not res.static_camera:
             likelihood = self._grown(likelihood, valid, cell_flow, t0, t1, m.prior_road)
+        if m.check_curr:
+            self._textured_cells(curr)  # for the stream's pair whose previous frame it will be
         self._check_road(t0)
         return self._assemble(flow, cell_flow, res, likelihood, valid, stream=m.stream,
                               seeds=seeds, curr=curr, static_flow=static_flow)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import threading
 
+import cv2
 import numpy as np
 import pytest
 
@@ -69,6 +70,42 @@ def test_stream_gives_apply_results_deciding_in_a_second_thread(frames, road, mo
     _assert_same(expected, got)
     assert len(threads) == len(frames) - PARAMS.frame_gap
     assert all(name.startswith("fisheyemotion-decide") for name in threads)
+
+
+@pytest.mark.parametrize("api", ["apply", "stream"])
+def test_each_frame_is_checked_for_texture_once_and_in_the_decision_as_it_arrives(frames, api,
+                                                                                 monkeypatch):
+    """The texture check of a stream's frame runs once: in the decision of the pair it ends
+    (stream(): in the second thread, beside the next pair's flow), and only the first frames,
+    which end no pair, when they begin one. A frame passed to detect() is checked each time."""
+    items = [(f.image, f.pose) for f in frames]
+    checked = []
+    sobel = cv2.Sobel
+
+    def counting(image, *args, **kwargs):
+        if args[1:3] == (1, 0):  # one call per check
+            checked.append((image.tobytes(), threading.current_thread().name))
+        return sobel(image, *args, **kwargs)
+
+    monkeypatch.setattr(cv2, "Sobel", counting)
+    detector = fm.MotionDetector(CAM, params=PARAMS)
+    got = _applied(detector, items) if api == "apply" else _streamed(detector, items)
+    grays = [cv2.cvtColor(f.image, cv2.COLOR_BGR2GRAY).tobytes()
+             for f in frames]
+    assert sorted(g for g, _ in checked) == sorted(grays)  # every frame once, none twice
+    gap = PARAMS.frame_gap
+    threads = dict(checked)
+    first = [threads[g] for g in grays[:gap]]  # checked as previous frames, measured in turn
+    later = [threads[g] for g in grays[gap:]]  # checked as current frames, in the decision
+    assert all(name == threading.main_thread().name for name in first)
+    decider = "fisheyemotion-decide" if api == "stream" else threading.main_thread().name
+    assert all(name.startswith(decider) for name in later)
+    assert sum(r is not None for r, _ in got) == len(frames) - gap
+    checked.clear()
+    prev, curr = frames[0], frames[gap]
+    for _ in range(2):
+        detector.detect(prev.image, curr.image, prev.pose, curr.pose)
+    assert len(checked) == 2  # not a stream: the previous frame's check each call
 
 
 def test_stream_without_poses_equals_apply(frames):
