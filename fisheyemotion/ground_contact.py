@@ -90,11 +90,39 @@ def contact_ratios(labels: NDArray[np.intp], ranges: NDArray[np.float64],
     with np.errstate(invalid="ignore", divide="ignore"):
         direction = step / norm
     good = valid.all(axis=0) & (norm[:, 0] > 1e-9)
-    # The walk down the vertical, the median met and the largest per column: one numba pass.
-    from ._grid_kernels import column_ratios  # numba on first use: a light import
+    centres = np.stack([ec * grid + (grid - 1) / 2, er * grid + (grid - 1) / 2], axis=-1)
+    samples = np.full((steps, len(er)), np.nan)
+    own = labels[er, ec]
+    for j in range(1, steps + 1):
+        at = centres + direction * grid * j
+        with np.errstate(invalid="ignore"):
+            c = np.floor(at[:, 0] / grid)
+            r = np.floor(at[:, 1] / grid)
+            inside = good & (c >= 0) & (c < cols) & (r >= 0) & (r < rows)
+        ci = np.where(inside, c, 0).astype(np.intp)
+        ri = np.where(inside, r, 0).astype(np.intp)
+        use = inside & (labels[ri, ci] != own)
+        samples[j - 1] = np.where(use, ranges[ri, ci], np.nan)
+    # The median of what was measured below each edge (NaN where nothing): the 50th percentile
+    # (linear interpolation: the mean of the middle two of an even count), as np.nanmedian.
+    ratio = _row_nanpercentile(samples.T, WALK_PERCENTILE) / lam
+    has = np.isfinite(ratio)
+    np.fmax.at(out, (own[has], ec[has]), ratio[has])
+    return out
 
-    column_ratios(labels, ranges, er, ec, lam, direction, good, int(grid), int(steps),
-                  float(WALK_PERCENTILE), out)
+
+def _row_nanpercentile(a: NDArray[np.float64], q: float) -> NDArray[np.float64]:
+    """``np.nanpercentile(a, q, axis=1)`` (linear interpolation) for a 2-D array, without its
+    per-row Python loop: NaN sort last, so each row's finite values lead its sorted copy."""
+    s = np.sort(a, axis=1)
+    k = np.isfinite(a).sum(axis=1)
+    pos = (k - 1) * (q / 100.0)
+    lo = np.floor(pos).astype(np.intp)
+    hi = np.minimum(lo + 1, np.maximum(k - 1, 0))
+    rows = np.arange(len(a))
+    lo = np.clip(lo, 0, a.shape[1] - 1)
+    out = s[rows, lo] + (pos - np.floor(pos)) * (s[rows, hi] - s[rows, lo])
+    out[k == 0] = np.nan
     return out
 
 
@@ -124,13 +152,19 @@ def standing_regions(moving: NDArray[np.bool_], antiparallel_share: NDArray[np.f
     n -= 1
     if n == 0:
         return np.zeros_like(moving)
-    from ._grid_kernels import led_regions, standing_cells  # numba on first use
-
-    candidates = np.empty_like(labels)
-    if not led_regions(labels, n, np.ascontiguousarray(antiparallel_share, np.float64),
-                       candidates):
+    flat = labels.ravel()
+    cells = np.bincount(flat, minlength=n + 1)[1:]
+    share = np.bincount(flat, weights=np.nan_to_num(antiparallel_share).ravel(),
+                        minlength=n + 1)[1:] / np.maximum(cells, 1)
+    led = share >= 0.5
+    if not led.any():
         return np.zeros_like(moving)
+    candidates = np.where(np.r_[False, led][labels], labels, 0)
     per_column = contact_ratios(candidates, ranges, rays, pose, camera, road, grid, steps=steps)
-    stands = np.empty(moving.shape, np.bool_)
-    standing_cells(candidates, per_column, float(ratio), stands)
-    return stands
+    region = _row_nanpercentile(per_column, 75.0)
+    decided = np.where(np.isnan(per_column), region[:, None], per_column)
+    with np.errstate(invalid="ignore"):
+        stands = decided < ratio
+    stands[0] = False
+    cols = np.broadcast_to(np.arange(moving.shape[1]), moving.shape)
+    return stands[candidates, cols]
