@@ -312,7 +312,8 @@ class MotionDetector:
         results as ``apply`` gives, on two cores.
 
         While one frame pair's result is decided (the photometric check, the transfer to the
-        current frame, the temporal filter, the segmentation) in a second thread, the next
+        current frame, the temporal filter, the segmentation, the texture check of its current
+        frame for the pair that begins with it) in a second thread, the next
         pair's flow is computed: it needs only the static-scene model, which the pair updated
         before its decision. Both threads spend most of their time in OpenCV and in numba
         kernels, which release the GIL. Streams whose next pose depends on the last mask
