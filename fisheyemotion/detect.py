@@ -270,7 +270,7 @@ class MotionDetector:
         # checked when it is the current frame, in the decision, and read when it is the
         # previous one (MotionDetector.stream decides beside the next pair's flow).
         self._textures: deque[tuple[NDArray[np.uint8], NDArray[np.bool_]]] = deque(
-            maxlen=2 * self.params.frame_gap + 1)
+            maxlen=self.params.frame_gap + 1)
 
     def detect(self, prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray,
                pose1: NDArray) -> Detection:
@@ -527,10 +527,11 @@ class MotionDetector:
                 keep &= np.linalg.norm(targets - at_infinity, axis=-1) >= p.min_parallax
         return keep
 
-    def _textured_cells(self, gray: NDArray[np.uint8]) -> NDArray[np.bool_]:
-        """Cells whose mean Sobel gradient magnitude reaches ``params.min_texture`` (kept for
-        the last frames: a stream's frame is checked once, as the current frame or else as
-        the previous one)."""
+    def _textured_cells(self, gray: NDArray[np.uint8], *, keep: bool = False
+                        ) -> NDArray[np.bool_]:
+        """Cells whose mean Sobel gradient magnitude reaches ``params.min_texture``; with
+        ``keep``, kept for when the frame begins a pair (a stream's frame is checked once: as
+        the current frame of the pair it ends, or else as the previous one)."""
         for i, (seen, cells) in enumerate(tuple(self._textures)):
             if seen is gray:  # a frame is a stream's previous frame once
                 del self._textures[i]
@@ -538,7 +539,8 @@ class MotionDetector:
         gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)
         gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
         cells = grid_average(cv2.magnitude(gx, gy), self.params.grid) >= self.params.min_texture
-        self._textures.append((gray, cells))
+        if keep:
+            self._textures.append((gray, cells))
         return cells
 
     def _consistent_cells(self, flow, cell_flow, backward) -> NDArray[np.bool_]:
@@ -645,8 +647,8 @@ class MotionDetector:
                                                  curr, m.sigma, measured, m.road)
         if p.grow > 0 and not res.static_camera:
             likelihood = self._grown(likelihood, valid, cell_flow, t0, t1, m.prior_road)
-        if m.check_curr:
-            self._textured_cells(curr)  # for the stream's pair whose previous frame it will be
+        if m.check_curr:  # for the stream's pair whose previous frame it will be
+            self._textured_cells(curr, keep=True)
         self._check_road(t0)
         return self._assemble(flow, cell_flow, res, likelihood, valid, stream=m.stream,
                               seeds=seeds, curr=curr, static_flow=static_flow)
