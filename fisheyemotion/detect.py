@@ -633,8 +633,7 @@ class MotionDetector:
                 above = valid & (likelihood > p.threshold)
             def along(cells):  # the epipolar curves at the cells' predicted points
                 r, c = np.nonzero(cells)
-                centre = (p.grid - 1) // 2  # the cell's centre pixel (odd grids: exact)
-                at = self._centres[r, c] + static_flow[r * p.grid + centre, c * p.grid + centre]
+                at = self._centres[r, c] + self._at_cell_centres(static_flow)[r, c]
                 return epipolar_directions(self.camera, at, t0, t1)
 
             measured = cell_residual(gray, curr, flow, p.grid, above)  # shared by both tests
@@ -804,6 +803,14 @@ class MotionDetector:
                               self._centres + cell_flow, static, p.grid, t1[:3, 3])
         return likelihood
 
+    def _at_cell_centres(self, image: NDArray) -> NDArray:
+        """A full-resolution map ``(H, W, ...)`` read at each cell's centre pixel (exact for odd
+        grids): ``(rows, cols, ...)``, a view."""
+        g = self.params.grid
+        centre = (g - 1) // 2
+        rows, cols = self._centres.shape[:2]
+        return image[centre:rows * g:g, centre:cols * g:g]
+
     def _scene_ranges_at_cells(self, pose0: NDArray) -> NDArray[np.float64]:
         """The scene model's ranges at the cell centres, read off the prior's coarser samples
         (computed once per frame pair: the prior asked for the same)."""
@@ -877,9 +884,7 @@ class MotionDetector:
             # The mask of the frame the user passed last, grown on that frame's image.
             residual = None
             if static_flow is not None:  # the cells' own motion, on the current frame's cells
-                centre = (p.grid - 1) // 2
-                rows, cols = cell_flow.shape[:2]
-                at = static_flow[centre:rows * p.grid:p.grid, centre:cols * p.grid:p.grid]
+                at = self._at_cell_centres(static_flow)
                 residual = now(np.where(valid[..., None], cell_flow - at, np.nan))
             mask, regions = grow_to_extent(labels, regions, p.grid, curr, likelihood,
                                            threshold=p.threshold, reach=p.extent_reach,
