@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import shlex
 import sys
@@ -54,6 +55,16 @@ def _seed(text: str) -> int:
     return seed
 
 
+def _non_negative(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
+    return value
+
+
 def _flows(text: str) -> list[str]:
     flows = [f.strip() for f in text.split(",") if f.strip()]
     bad = [f for f in flows if f not in ("farneback", "dis")]
@@ -92,7 +103,10 @@ def cmd_eval(args: argparse.Namespace) -> int:
                                    commands=["fisheyemotion " + shlex.join(sys.argv[1:])],
                                    world=args.world, road=args.road,
                                    camera_height=args.camera_height, poses=args.poses,
-                                   noise=Perturbation(seed=args.noise_seed))
+                                   noise=Perturbation(rotation_deg=args.noise_rotation,
+                                                      translation=args.noise_translation,
+                                                      time_offset_s=args.noise_time_offset,
+                                                      seed=args.noise_seed))
         if args.additions:
             _write_additions(paths, args, out)
     _print_table2(results)
@@ -208,9 +222,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--poses", choices=("true", "estimated", "perturbed"), default="true",
                    help="the poses the detector is given: the true ones, estimated from the "
                         "images (speed from the true poses), or the true ones with noise "
-                        "(0.3 deg, 3 %% of the step, 5 ms late) (default: %(default)s)")
+                        "(--noise-*) (default: %(default)s)")
     p.add_argument("--noise-seed", type=_seed, default=0, metavar="N",
                    help="with --poses perturbed: the noise's draw (default: %(default)s)")
+    p.add_argument("--noise-rotation", type=_non_negative, default=Perturbation.rotation_deg,
+                   metavar="DEG", help="with --poses perturbed: each frame's orientation turned "
+                   "by this angle about a random axis (default: %(default)s)")
+    p.add_argument("--noise-translation", type=_non_negative, default=Perturbation.translation,
+                   metavar="SHARE", help="with --poses perturbed: each frame's position moved "
+                   "by this share of the frame-to-frame step in a random direction (default: "
+                   "%(default)s)")
+    p.add_argument("--noise-time-offset", type=_non_negative,
+                   default=Perturbation.time_offset_s, metavar="SECONDS",
+                   help="with --poses perturbed: the poses are this much late (default: "
+                   "%(default)s)")
     p.add_argument("--pose-refinement", choices=("off", "on", "auto"),
                    help="refine the given poses' rotation on the images first (default: the "
                         "one in --params, off)")

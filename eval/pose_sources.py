@@ -57,6 +57,16 @@ class Perturbation:
     time_offset_s: float = 0.005
     seed: int = 0
 
+    def __post_init__(self) -> None:
+        for name in ("rotation_deg", "translation", "time_offset_s"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float) \
+                    or not math.isfinite(value) or value < 0:
+                raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int | np.integer) \
+                or self.seed < 0:
+            raise ValueError(f"seed: expected an integer >= 0, got {self.seed!r}")
+
 
 def _rotation(axis: NDArray, angle: float) -> NDArray[np.float64]:
     import cv2

@@ -317,3 +317,31 @@ def test_eval_cli_draws_the_pose_noise_by_seed(ego_sequence, tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["eval", str(ego_sequence), "--noise-seed", "-1", "--out", str(tmp_path / "x")])
     assert "integer >= 0" in capsys.readouterr().err
+
+
+def test_eval_cli_sets_the_size_of_the_pose_noise(ego_sequence, tmp_path, capsys):
+    import pandas as pd
+
+    (tmp_path / "p.yaml").write_text("frame_gap: 1\nflow: dis\ndis_preset: ultrafast\n")
+    out = tmp_path / "out"
+    assert main(["eval", str(ego_sequence), "--poses", "perturbed", "--noise-rotation", "0.2",
+                 "--noise-translation", "0", "--noise-time-offset", "0",
+                 "--params", str(tmp_path / "p.yaml"), "--workers", "1", "--quiet",
+                 "--out", str(out)]) == 0
+    errors = pd.read_csv(out / "frames.csv").rotation_error_deg
+    # Two frames' orientations each 0.2 deg off about random axes: 0.4 deg at most between them.
+    assert 0.02 < errors.median() and errors.max() <= 0.4 + 1e-6
+    for flag in ("--noise-rotation", "--noise-translation", "--noise-time-offset"):
+        with pytest.raises(SystemExit):
+            main(["eval", str(ego_sequence), flag, "nan", "--out", str(tmp_path / "x")])
+        assert f"argument {flag}: expected a finite number >= 0" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("field, value", [("rotation_deg", -0.1), ("translation", np.inf),
+                                          ("time_offset_s", "5 ms"), ("seed", -1),
+                                          ("seed", 1.5)])
+def test_a_perturbation_names_the_field_it_refuses(field, value):
+    from fisheyemotion.eval.pose_sources import Perturbation
+
+    with pytest.raises(ValueError, match=f"^{field}: expected"):
+        Perturbation(**{field: value})
