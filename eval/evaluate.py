@@ -114,12 +114,15 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
         camera_height = float(Road().height(seq.poses[0, :3, 3]))
     elif camera_height is not None and not isinstance(camera_height, int | float):
         raise ValueError(f"camera_height: expected metres or 'scene', got {camera_height!r}")
-    given = poses_for(seq, poses, params, noise=noise, roi=roi)
+    if road not in ("given", "auto"):
+        raise ValueError(f"road: expected 'given' or 'auto', got {road!r}")
+    # The refinement knows what the detector knows: the road given (the scene's, z = 0, in the
+    # frame the poses are refined in) or the camera's height.
+    given = poses_for(seq, poses, params, noise=noise, roi=roi,
+                      road=Road() if road == "given" else None, camera_height=camera_height)
     errors = pose_errors(given.poses, seq.poses, params.frame_gap).set_index("frame")
     valid = cam.valid_pixel_mask() & (True if roi is None else roi > 0)
     moved, road_given = world_transform(world, seq.poses[0])
-    if road not in ("given", "auto"):
-        raise ValueError(f"road: expected 'given' or 'auto', got {road!r}")
     road_arg = road_given if road == "given" else "auto"
     main = MotionDetector(cam, road_arg, params=params, roi=roi, camera_height=camera_height)
     variants = {name: MotionDetector(cam, road_arg, params=params.replace(weights=w), roi=roi,

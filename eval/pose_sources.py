@@ -124,22 +124,28 @@ class GivenPoses(NamedTuple):
         return self.anchors[k] @ self.poses[k - gap], self.anchors[k] @ self.poses[k]
 
 
-def refined(seq: Sequence, poses: NDArray, params: Params, mask: NDArray | None) -> GivenPoses:
-    """``poses`` refined on the images by the detector's own refinement, frame by frame."""
+def refined(seq: Sequence, poses: NDArray, params: Params, mask: NDArray | None, *,
+            road: Road | None = None, camera_height: float | None = None) -> GivenPoses:
+    """``poses`` refined on the images by the detector's own refinement, frame by frame, as
+    :meth:`fisheyemotion.MotionDetector.apply` runs it with ``road`` (the scene's frame) or
+    ``camera_height`` known."""
     refiner = PoseRefiner(seq.camera, mode=params.pose_refinement,
                           tolerance=params.refine_tolerance,
-                          mask=seq.camera.valid_pixel_mask() & (True if mask is None else mask > 0))
+                          mask=seq.camera.valid_pixel_mask() & (True if mask is None else mask > 0),
+                          camera_height=camera_height)
     chain, anchors = [], []
     for k in range(len(seq)):
-        chain.append(refiner.step(to_gray(seq.frame(k), "frame"), poses[k]))
+        chain.append(refiner.step(to_gray(seq.frame(k), "frame"), poses[k], road=road))
         anchors.append(refiner.anchor)
     return GivenPoses(np.stack(chain), np.stack(anchors))
 
 
 def poses_for(seq: Sequence, source: str, params: Params, *, noise: Perturbation | None = None,
-              roi: NDArray | None = None) -> GivenPoses:
+              roi: NDArray | None = None, road: Road | None = None,
+              camera_height: float | None = None) -> GivenPoses:
     """The poses (scene frame) the detector is given for ``source``, refined when
-    ``params.pose_refinement`` says so."""
+    ``params.pose_refinement`` says so (with the ``road`` in the scene's frame or the
+    ``camera_height``, where the detector knows them)."""
     if source not in POSE_SOURCES:
         raise ValueError(f"poses: expected one of {', '.join(POSE_SOURCES)}, got {source!r}")
     if source == "true":
@@ -149,7 +155,7 @@ def poses_for(seq: Sequence, source: str, params: Params, *, noise: Perturbation
     else:
         poses = perturbed(seq, noise or Perturbation())
     if params.pose_refinement != "off":
-        return refined(seq, poses, params, roi)
+        return refined(seq, poses, params, roi, road=road, camera_height=camera_height)
     return GivenPoses(poses, np.broadcast_to(np.eye(4), poses.shape))
 
 

@@ -398,8 +398,9 @@ class MotionDetector:
                 if self._refiner is None:
                     self._refiner = PoseRefiner(self.camera, mode=self.params.pose_refinement,
                                                 tolerance=self.params.refine_tolerance,
-                                                mask=self._pixel_valid)
-                t = self._refiner.step(gray, t, self._last_mask)
+                                                mask=self._pixel_valid,
+                                                camera_height=self.camera_height)
+                t = self._refiner.step(gray, t, self._last_mask, road=self.road)
                 anchor = self._refiner.anchor
         world = t if anchor is None else anchor @ t
         self.last_pose = world

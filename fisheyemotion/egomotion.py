@@ -298,6 +298,12 @@ class PoseTracker:
         """Whether the steps are in metres (a road scale has been measured)."""
         return bool(self._scales)
 
+    @property
+    def scale(self) -> float | None:
+        """Metres per unit of :meth:`step`'s translation (the median of the last
+        ``SCALE_MEMORY`` road measurements), or None before the first."""
+        return float(np.median(self._scales)) if self._scales else None
+
     def step(self, gray: NDArray[np.uint8], exclude: NDArray[np.bool_] | None = None
              ) -> NDArray[np.float64] | None:
         """``cam_now_from_cam_before`` (unit translation) between the previous frame and this
@@ -384,6 +390,7 @@ class PoseTracker:
         stand still)."""
         transform = self.step(gray, exclude)
         if transform is not None:
-            transform[:3, 3] *= float(np.median(self._scales)) if self._scales else self.step_length
+            scale = self.scale
+            transform[:3, 3] *= self.step_length if scale is None else scale
             self.pose = self.pose @ np.linalg.inv(transform)
         return self.pose.copy()

@@ -6,9 +6,15 @@ but nothing absolute. :class:`PoseRefiner` keeps both for what each is good at:
 
 - a **chain** of relative motions: each step's rotation and direction of travel from the images
   (:class:`~fisheyemotion.egomotion.PoseTracker`) where they disagree with the given step by more
-  than the tolerance (``auto``) or always (``on``), the step's length from the given poses (the
-  images have no scale); the given step where they agree; no motion where the images see the
-  camera standing still;
+  than the tolerance (``auto``) or always (``on``); the given step where they agree; no motion
+  where the images see the camera standing still. The step's length: where the camera's height
+  above the road is known (``camera_height``, or the given poses' median height over the last
+  :data:`ANCHOR_FRAMES` frames above a given ``road``), from the road the images show, as the
+  pose tracker measures it for a stream without poses (the median of its last few steps); else,
+  and until the road has been measured, the given step's length. Given positions a few per cent
+  of a step off each give each step's length that far off, and the step of a frame pair whose
+  scene points the next pair's prior reuses with another step's error; the road measures each
+  step within about 1 % (docs/evaluation.md, noisy poses);
 - an **anchor** ``world_from_chain``, the chain's frame in the user's world: the rotation mean
   of ``R_given R_chain^T`` over the last :data:`ANCHOR_FRAMES` frames (each given pose's own
   error averages out, and the chain's drift is followed) and the translation that maps the
@@ -31,6 +37,7 @@ from numpy.typing import NDArray
 from .calib.base import CameraModel
 from .calib.transforms import make_transform, mean_rotation, rotation_angle, vector_angle
 from .egomotion import PoseTracker
+from .road import Road
 
 __all__ = ["ANCHOR_FRAMES", "DIRECTION_TOLERANCE", "PoseRefiner"]
 
@@ -55,12 +62,18 @@ class PoseRefiner:
         Degrees.
     mask : ndarray of bool, shape (H, W), optional
         Pixels to track corners in.
+    camera_height : float, optional
+        Metres above the road: each step's length from the road the images show (module doc).
+        Without it, a ``road`` given to :meth:`step` gives the height.
     """
 
     def __init__(self, camera: CameraModel, *, mode: str, tolerance: float,
-                 mask: NDArray[np.bool_] | None = None) -> None:
+                 mask: NDArray[np.bool_] | None = None,
+                 camera_height: float | None = None) -> None:
         self.mode, self.tolerance = mode, tolerance
-        self._tracker = PoseTracker(camera, mask=mask)
+        # Validated here; the height the tracker measures with is set at every step.
+        self._tracker = PoseTracker(camera, mask=mask, camera_height=camera_height)
+        self.camera_height = camera_height
         self._given: NDArray[np.float64] | None = None
         self._chain: NDArray[np.float64] | None = None
         self._window: deque[tuple[NDArray, NDArray]] = deque(maxlen=ANCHOR_FRAMES)
@@ -68,9 +81,12 @@ class PoseRefiner:
         self.anchor = np.eye(4)
 
     def step(self, gray: NDArray[np.uint8], pose: NDArray[np.float64],
-             exclude: NDArray[np.bool_] | None = None) -> NDArray[np.float64]:
+             exclude: NDArray[np.bool_] | None = None, *,
+             road: Road | None = None) -> NDArray[np.float64]:
         """The chain's pose ``(4, 4)`` at this frame, given its pose in the world and the frame
-        (``exclude``: pixels the detector found moving); :attr:`anchor` maps it to the world."""
+        (``exclude``: pixels the detector found moving; ``road``: the road in the world, when
+        known); :attr:`anchor` maps it to the world."""
+        self._tracker.camera_height = self._height(pose, road)
         estimate = self._tracker.step(gray, exclude)
         given_before, chain_before = self._given, self._chain
         if chain_before is None:
@@ -90,6 +106,8 @@ class PoseRefiner:
                 if self.mode == "on" or angle > self.tolerance \
                         or off_course > DIRECTION_TOLERANCE * self.tolerance:
                     r = estimate[:3, :3]
+                    if self._tracker.scale is not None:  # the road's length (module doc)
+                        length = self._tracker.scale
                     relative = make_transform(r, -r @ (step_images * length))
             elif self._tracker.still:
                 # The images say the camera stood still: it did, whatever the given poses say.
@@ -103,3 +121,15 @@ class PoseRefiner:
         self.anchor = make_transform(rotation, given_all[:, :3, 3].mean(axis=0)
                                      - rotation @ chain_all[:, :3, 3].mean(axis=0))
         return chain
+
+    def _height(self, pose: NDArray[np.float64], road: Road | None) -> float | None:
+        """The camera's height above the road for this step: ``camera_height``, or the median of
+        the given poses' heights above ``road`` over the window and this frame (None where
+        neither is known or the given poses are not above the road)."""
+        if self.camera_height is not None:
+            return self.camera_height
+        if road is None or not road.known:
+            return None
+        positions = np.stack([pose[:3, 3], *(g[:3, 3] for g, _ in self._window)])
+        height = float(np.median(road.height(positions)))
+        return height if np.isfinite(height) and height > 0 else None
