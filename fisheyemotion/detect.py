@@ -400,7 +400,9 @@ class MotionDetector:
                                                 tolerance=self.params.refine_tolerance,
                                                 mask=self._pixel_valid,
                                                 camera_height=self.camera_height)
-                t = self._refiner.step(gray, t, self._last_mask, road=self.road)
+                # The road as given, not as estimated from the refined poses themselves.
+                t = self._refiner.step(gray, t, self._last_mask,
+                                       road=self.road if self.ground is None else None)
                 anchor = self._refiner.anchor
         world = t if anchor is None else anchor @ t
         self.last_pose = world
