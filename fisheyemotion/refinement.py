@@ -12,9 +12,9 @@ but nothing absolute. :class:`PoseRefiner` keeps both for what each is good at:
   :data:`ANCHOR_FRAMES` frames above a given ``road``), from the road the images show, as the
   pose tracker measures it for a stream without poses (the median of its last few steps); else,
   and until the road has been measured, the given step's length. Given positions a few per cent
-  of a step off each give each step's length that far off, and the step of a frame pair whose
-  scene points the next pair's prior reuses with another step's error; the road measures each
-  step within about 1 % (docs/evaluation.md, noisy poses);
+  of a step off put each step's length that far off, and the next pair's prior reuses scene
+  points triangulated over a baseline with another error; the road measures each step within
+  about 1 % (docs/evaluation.md, noisy poses);
 - an **anchor** ``world_from_chain``, the chain's frame in the user's world: the rotation mean
   of ``R_given R_chain^T`` over the last :data:`ANCHOR_FRAMES` frames (each given pose's own
   error averages out, and the chain's drift is followed) and the translation that maps the
