@@ -341,33 +341,44 @@ def pose_steps(names=("crossing", "highway", "street_kb", "street_ds", "curve", 
           f"consecutive frames median {np.median(rotations):.3f} deg")
 
 
-def pose_noise_draws(draws: int = 8) -> None:
-    """Table 2 over all scenes with the true poses, beside its spread under a negligible
-    perturbation (0.001 deg about a random axis per frame, ``draws`` draws: how far the figures
-    move when nothing that matters changes) and over the same draws of the default noise
-    (0.3 deg, 3 % of the step, 5 ms), given as they are and refined (``pose_refinement='on'``):
-    each row's mean and range over the draws, and each mean's difference from the true poses'
-    figure and from the negligible perturbation's mean."""
-    from fisheyemotion.eval.evaluate import combine, evaluate
+def _table2_all_scenes(params, **options) -> dict[str, float]:
+    """Table 2 over every demo sequence, in per cent: ``{"<category> det.|cov.": value}``
+    (``options``: :func:`fisheyemotion.eval.evaluate.evaluate_sequence`'s)."""
+    from fisheyemotion.eval.evaluate import combine, evaluate, sequence_paths
     from fisheyemotion.eval.metrics import table2
+
+    tables = combine(evaluate(sequence_paths([SEQUENCES]), params, ablation=False,
+                              progress=False, **options))
+    t = table2(tables["objects"], tables["frames"]).set_index("category")
+    return {f"{c} {k}": 100 * float(t.loc[c, m]) for c in t.index
+            for k, m in (("det.", "detection_rate"), ("cov.", "coverage_rate"))}
+
+
+def _negligible(seed: int):
+    """Every pose turned by 0.001 deg about a random axis, nothing else: a perturbation that
+    changes nothing that matters (a few thousandths of a pixel)."""
     from fisheyemotion.eval.pose_sources import Perturbation
 
-    paths = sorted(p for p in SEQUENCES.iterdir() if p.is_dir())
+    return Perturbation(rotation_deg=0.001, translation=0.0, time_offset_s=0.0, seed=seed)
 
-    def rows(params, **options):
-        tables = combine(evaluate(paths, params, ablation=False, progress=False, **options))
-        t = table2(tables["objects"], tables["frames"]).set_index("category")
-        return {f"{c} {k}": 100 * float(t.loc[c, m]) for c in t.index
-                for k, m in (("det.", "detection_rate"), ("cov.", "coverage_rate"))}
 
-    true = rows(fm.Params())
+def pose_noise_draws(draws: int = 8) -> None:
+    """Table 2 over all scenes with the true poses, beside its spread under a negligible
+    perturbation (:func:`_negligible`, ``draws`` draws: how far the figures move when nothing
+    that matters changes) and over the same draws of the default noise (0.3 deg, 3 % of the
+    step, 5 ms), given as they are and refined (``pose_refinement='on'``): each row's mean and
+    range over the draws, and each mean's difference from the true poses' figure and from the
+    negligible perturbation's mean."""
+    from fisheyemotion.eval.pose_sources import Perturbation
+
+    true = _table2_all_scenes(fm.Params())
     sources = {
-        "negligible (0.001 deg)": (fm.Params(), lambda s: Perturbation(
-            rotation_deg=0.001, translation=0.0, time_offset_s=0.0, seed=s)),
+        "negligible (0.001 deg)": (fm.Params(), _negligible),
         "perturbed": (fm.Params(), lambda s: Perturbation(seed=s)),
         "perturbed, refined": (fm.Params(pose_refinement="on"), lambda s: Perturbation(seed=s)),
     }
-    runs = {name: [rows(params, poses="perturbed", noise=noise(s)) for s in range(draws)]
+    runs = {name: [_table2_all_scenes(params, poses="perturbed", noise=noise(s))
+                   for s in range(draws)]
             for name, (params, noise) in sources.items()}
     floor = {key: np.mean([r[key] for r in runs["negligible (0.001 deg)"]]) for key in true}
     print(f"Table 2 over all scenes, {draws} draws each: mean [min-max]")
@@ -387,26 +398,15 @@ def pose_noise_draws(draws: int = 8) -> None:
 
 
 def scene_model_amplification(draws: int = 4) -> None:
-    """The same negligible perturbation as :func:`pose_noise_draws` (0.001 deg per frame) with
-    the static-scene model off (``scene_prior=False``): the largest difference of each draw's
-    Table 2 from the unperturbed run's, which says whether the scene model's feedback (each
-    pair's result in the next pair's prior) is what amplifies it."""
-    from fisheyemotion.eval.evaluate import combine, evaluate
-    from fisheyemotion.eval.metrics import table2
-    from fisheyemotion.eval.pose_sources import Perturbation
-
-    paths = sorted(p for p in SEQUENCES.iterdir() if p.is_dir())
+    """The same negligible perturbation as :func:`pose_noise_draws` with the static-scene model
+    off (``scene_prior=False``): the largest difference of each draw's Table 2 from the
+    unperturbed run's, which says whether the scene model's feedback (each pair's result in the
+    next pair's prior) is what amplifies it."""
     params = fm.Params(scene_prior=False)
-
-    def rows(**options):
-        tables = combine(evaluate(paths, params, ablation=False, progress=False, **options))
-        t = table2(tables["objects"], tables["frames"])
-        return 100 * t[["detection_rate", "coverage_rate"]].to_numpy()
-
-    base = rows()
-    moved = [np.nanmax(np.abs(rows(poses="perturbed", noise=Perturbation(
-        rotation_deg=0.001, translation=0.0, time_offset_s=0.0, seed=s)) - base))
-        for s in range(draws)]
+    base = _table2_all_scenes(params)
+    moved = [np.nanmax([abs(row[k] - base[k]) for k in base])
+             for row in (_table2_all_scenes(params, poses="perturbed", noise=_negligible(s))
+                         for s in range(draws))]
     print("without the scene model, 0.001 deg per frame moves Table 2 by at most "
           + ", ".join(f"{m:.1f}" for m in moved) + " points (one value per draw)")
 

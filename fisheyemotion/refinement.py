@@ -106,8 +106,8 @@ class PoseRefiner:
                 if self.mode == "on" or angle > self.tolerance \
                         or off_course > DIRECTION_TOLERANCE * self.tolerance:
                     r = estimate[:3, :3]
-                    if self._tracker.scale is not None:  # the road's length (module doc)
-                        length = self._tracker.scale
+                    scale = self._tracker.scale  # the road's length (module doc), if measured
+                    length = length if scale is None else scale
                     relative = make_transform(r, -r @ (step_images * length))
             elif self._tracker.still:
                 # The images say the camera stood still: it did, whatever the given poses say.
