@@ -43,6 +43,8 @@ from .ground_contact import standing_regions
 from .grow import grow_regions
 from .params import Params
 from .photometric import (
+    SEARCH_STEP,
+    arc_candidates,
     cell_residual,
     epipolar_directions,
     off_arc_supported,
@@ -665,7 +667,14 @@ class MotionDetector:
         r, c = np.nonzero(seeds)
         rays0 = self._rays0[r, c]
         arc = nearest_static_ray(rays0, rays1[r, c], t0, t1)
-        at, _ = self.camera.project(arc)
+        candidates = arc[None]
+        if p.photometric_search > 0:  # the static correspondences around it on the arc
+            if self._pixel_angle is None:
+                self._pixel_angle = pixel_angle(self.camera, self._centres)
+            reach = np.arange(-p.photometric_search, p.photometric_search + 1e-9, SEARCH_STEP)
+            candidates = arc_candidates(rays0, arc, t0, t1,
+                                        reach[:, None] * self._pixel_angle[r, c])
+        at, _ = self.camera.project(candidates)
         off_arc = off_arc_supported(gray, curr, flow, p.grid, p.photometric_margin, seeds,
                                     at - (self._centres[r, c] + cell_flow[r, c]), measured)
         on_arc = constraints(rays0, arc, t0, t1, road=road, params=p)

@@ -115,6 +115,14 @@ class Params:
         frames worse by more than ``photometric_margin``) or its deviations on the arc reach
         the threshold (:mod:`fisheyemotion.photometric`): a flow error along an edge counts for
         nothing.
+    photometric_search : float
+        Pixels either way along the epipolar arc from the static correspondence nearest the
+        measured one over which ``photometric_arc`` looks for the static correspondence that
+        best explains the frames: the deviation is supported only if the measured flow
+        explains them better than all of those (a flow error at a depth discontinuity is off
+        the static point in any direction, so the arc's nearest point can be pixels from it).
+        0 compares with the nearest point only (0.7.2). Chosen on all the scenes
+        (docs/evaluation.md, *Photometric search*).
     grow : int
         Cells a detected region may grow by into neighbours whose residual flow (measured minus
         the static scene's) is like the region's (:mod:`fisheyemotion.grow`): the object's flow
@@ -237,6 +245,7 @@ class Params:
     photometric_margin: float = 10.0
     photometric_tolerance: float = 0.25
     photometric_arc: bool = True
+    photometric_search: float = 4.0
     pose_refinement: str = "off"
     refine_tolerance: float = 0.1
     contact_ratio: float = 1.05
@@ -273,7 +282,7 @@ class Params:
                      "threshold", "saturation", "fb_tolerance", "fb_relative", "min_texture",
                      "min_parallax", "seed_threshold", "extend_threshold", "contact_ratio",
                      "contact_arc", "range_consistency", "extent_reach", "extent_static",
-                     "photometric_margin", "photometric_tolerance",
+                     "photometric_margin", "photometric_tolerance", "photometric_search",
                      "significance", "flow_sigma", "refine_tolerance"):
             v = getattr(self, name)
             if not _finite(v) or v < 0:

@@ -27,11 +27,17 @@ pixel along the curve does not undo.
 
 What the images do not support counts for nothing. A cell the static scene does not explain
 is a seed only if the images also support its deviation from the epipolar arc: moved onto the
-arc (the static correspondence nearest the measured one,
-:func:`fisheyemotion.constraints.nearest_static_ray`), the measured flow must explain the frames
-worse by more than the margin (:func:`off_arc_supported`); where it does not (a flow error
-along an edge, the aperture problem), the cell counts only by its deviations on the arc (height
-and anti-parallel), which the detector scores at the moved correspondence.
+arc, the measured flow must explain the frames worse by more than the margin
+(:func:`off_arc_supported`); where it does not (a flow error along an edge, the aperture
+problem), the cell counts only by its deviations on the arc (height and anti-parallel), which
+the detector scores at the static correspondence nearest the measured one
+(:func:`fisheyemotion.constraints.nearest_static_ray`). "Onto the arc" is not only that nearest
+point: a flow method that smoothed across a depth discontinuity or locked onto the wrong
+texture is off the true correspondence by pixels in any direction, so the nearest point of the
+arc can be pixels from the static point too, and explain the frames badly. The off-arc test
+therefore compares the measured flow with the best of the static correspondences within a
+search reach either way along the arc from the nearest one (:func:`arc_candidates`); the
+deviation is supported only if the measured flow beats them all.
 
 Two kinds of motion the check cannot see: an object moving along its epipolar line (oncoming,
 preceding) seen as static is a consistent static scene at another depth, which the static-scene
@@ -49,10 +55,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .calib.base import CameraModel
+from .constraints import nearest_static_ray
 
 _STEP = 1e-4  # radians along the epipolar circle, either way, for its image direction
+#: Pixels between the static correspondences the off-arc test compares (``Params.photometric_search``).
+SEARCH_STEP = 0.5
 
-__all__ = ["cell_residual", "epipolar_directions", "off_arc_supported", "static_explained"]
+__all__ = ["SEARCH_STEP", "arc_candidates", "cell_residual", "epipolar_directions", "off_arc_supported",
+           "static_explained"]
 
 
 def cell_residual(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArray[np.float32],
@@ -163,22 +173,78 @@ def static_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
     return explained
 
 
+def arc_candidates(rays0: NDArray[np.float64], arc: NDArray[np.float64], pose0: NDArray,
+                   pose1: NDArray, angles: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Static correspondences along the epipolar arc of each ray, around a point of it.
+
+    The current ray of ``rays0``'s static point turned by ``angles`` along its epipolar great
+    circle from ``arc`` (positive towards the epipole ``e'``), clamped to the static arc from
+    ``e'`` (range 0) to the rotated ``p`` (range infinite) by
+    :func:`fisheyemotion.constraints.nearest_static_ray`: every candidate is a static point's
+    image at some range.
+
+    Parameters
+    ----------
+    rays0 : ndarray of float64, shape (n, 3)
+        Rays in the previous camera's frame.
+    arc : ndarray of float64, shape (n, 3)
+        A static correspondence of each in the current camera's frame (on its arc), e.g. the
+        nearest to the measured ray.
+    pose0, pose1 : ndarray, shape (4, 4)
+        ``world_from_cam`` of the two cameras (validated by the caller).
+    angles : ndarray of float64, shape (m, n)
+        Radians along the circle, one row per candidate.
+
+    Returns
+    -------
+    ndarray of float64, shape (m, n, 3)
+        Unit rays in the current camera's frame; NaN where ``arc`` is, or the camera did not
+        move.
+    """
+    baseline = pose0[:3, 3] - pose1[:3, 3]
+    b = float(np.linalg.norm(baseline))
+    angles = np.asarray(angles, np.float64)
+    if not b > 0:
+        return np.full((*angles.shape, 3), np.nan)
+    e = pose1[:3, :3].T @ (baseline / b)  # e' in the current camera's frame
+    towards = e - (arc @ e)[:, None] * arc  # in the circle's plane, at right angles to arc
+    with np.errstate(invalid="ignore", divide="ignore"):
+        towards /= np.linalg.norm(towards, axis=-1, keepdims=True)
+    turned = (np.cos(angles)[..., None] * arc + np.sin(angles)[..., None] * towards)
+    m, n = angles.shape
+    out = nearest_static_ray(np.tile(rays0, (m, 1)), turned.reshape(m * n, 3), pose0, pose1)
+    return out.reshape(m, n, 3)
+
+
 def off_arc_supported(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
                       flow: NDArray[np.float32], grid: int, margin: float,
                       cells: NDArray[np.bool_], shift: NDArray,
                       measured: NDArray[np.float32] | None = None) -> NDArray[np.bool_]:
     """Cells ``(H // grid, W // grid)`` of ``cells`` whose measured flow explains the frames
-    better, by more than ``margin`` grey levels, than the same flow moved by ``shift``
-    (``(n, 2)`` pixels, one row per cell of ``cells`` in row-major order: onto the epipolar
-    arc, module doc). False elsewhere; True where the shift is not finite. ``measured``: the
-    flow's :func:`cell_residual` at ``cells``, if the caller has it."""
-    finite = np.isfinite(shift).all(axis=-1)
+    better, by more than ``margin`` grey levels, than the same flow moved by ``shift`` onto the
+    epipolar arc (module doc) -- than every one of the shifts, with several.
+
+    ``shift`` is ``(n, 2)`` pixels, one row per cell of ``cells`` in row-major order, or
+    ``(m, n, 2)``: ``m`` candidates per cell (:func:`arc_candidates`), of which the best counts.
+    False elsewhere; True where no shift of the cell is finite. ``measured``: the flow's
+    :func:`cell_residual` at ``cells``, if the caller has it."""
+    shift = np.asarray(shift, np.float64)
+    shifts = shift[None] if shift.ndim == 2 else shift
     if measured is None:
         measured = cell_residual(prev, curr, flow, grid, cells)
-    moved = _cell_residuals(prev, curr, flow, grid, cells,
-                            (np.where(finite[:, None], shift, 0.0),))[0]
-    out = np.zeros(cells.shape, bool)
     r, c = np.nonzero(cells)
+    best = np.full(len(r), np.nan)  # the best moved residual; NaN: none sampled
+    shifted = np.zeros(len(r), bool)  # a finite shift was tried
+    finites = np.isfinite(shifts).all(axis=-1)
+    moves = _cell_residuals(prev, curr, flow, grid, cells,
+                            tuple(np.where(finites[..., None], shifts, 0.0)))
+    for finite, moved in zip(finites, moves, strict=True):
+        moved = moved[r, c]
+        with np.errstate(invalid="ignore"):
+            better = finite & (np.isnan(best) | (moved < best))
+        best[better] = moved[better]
+        shifted |= finite
+    out = np.zeros(cells.shape, bool)
     with np.errstate(invalid="ignore"):
-        out[r, c] = (moved[r, c] > measured[r, c] + margin) | ~finite
+        out[r, c] = (best > measured[r, c] + margin) | ~shifted
     return out
