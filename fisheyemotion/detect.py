@@ -660,29 +660,38 @@ class MotionDetector:
     def _supported_off_arc(self, seeds, flow, cell_flow, rays1, t0, t1, gray, curr, sigma,
                            measured, road: Road) -> NDArray[np.bool_]:
         """The seed cells whose evidence the images support (:mod:`fisheyemotion.photometric`):
-        their deviation from the epipolar arc, or else their likelihood at the static
-        correspondence nearest the measured one (on the arc: the height and anti-parallel
-        deviations, the height's significance)."""
+        their deviation from the epipolar arc (against the static correspondences within
+        ``photometric_search`` pixels along it of the nearest one), or else their likelihood at
+        the nearest (on the arc: the height and anti-parallel deviations, the height's
+        significance)."""
         p = self.params
         r, c = np.nonzero(seeds)
         rays0 = self._rays0[r, c]
         arc = nearest_static_ray(rays0, rays1[r, c], t0, t1)
-        candidates = arc[None]
-        if p.photometric_search > 0:  # the static correspondences around it on the arc
-            if self._pixel_angle is None:
-                self._pixel_angle = pixel_angle(self.camera, self._centres)
-            reach = np.arange(-p.photometric_search, p.photometric_search + 1e-9, SEARCH_STEP)
-            candidates = arc_candidates(rays0, arc, t0, t1,
-                                        reach[:, None] * self._pixel_angle[r, c])
-        at, _ = self.camera.project(candidates)
+        measured_at = self._centres[r, c] + cell_flow[r, c]
+        at, _ = self.camera.project(arc)
         off_arc = off_arc_supported(gray, curr, flow, p.grid, p.photometric_margin, seeds,
-                                    at - (self._centres[r, c] + cell_flow[r, c]), measured)
+                                    at - measured_at, measured)
         on_arc = constraints(rays0, arc, t0, t1, road=road, params=p)
         likelihood = on_arc.likelihood
         if p.significance > 0 and sigma is not None:
             likelihood = self._with_significance(on_arc, sigma[r, c], likelihood)
         with np.errstate(invalid="ignore"):
             scored = likelihood > p.threshold
+        # The search can only take support away: it runs where the nearest point gave it and
+        # the arc's deviations do not make the cell a seed anyway.
+        search = off_arc[r, c] & ~scored
+        if p.photometric_search > 0 and search.any():
+            if self._pixel_angle is None:
+                self._pixel_angle = pixel_angle(self.camera, self._centres)
+            reach = np.arange(-p.photometric_search, p.photometric_search + 1e-9, SEARCH_STEP)
+            candidates = arc_candidates(rays0[search], arc[search], t0, t1,
+                                        reach[:, None] * self._pixel_angle[r[search], c[search]])
+            at, _ = self.camera.project(candidates)
+            cells = np.zeros_like(seeds)
+            cells[r[search], c[search]] = True
+            off_arc &= ~cells | off_arc_supported(gray, curr, flow, p.grid, p.photometric_margin,
+                                                  cells, at - measured_at[search], measured)
         out = off_arc.copy()
         out[r, c] |= scored
         return out

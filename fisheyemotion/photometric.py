@@ -58,11 +58,12 @@ from .calib.base import CameraModel
 from .constraints import nearest_static_ray
 
 _STEP = 1e-4  # radians along the epipolar circle, either way, for its image direction
-#: Pixels between the static correspondences the off-arc test compares (``Params.photometric_search``).
-SEARCH_STEP = 0.5
+#: Pixels between the static correspondences that the off-arc test compares
+#: (``Params.photometric_search``).
+SEARCH_STEP = 1.0
 
-__all__ = ["SEARCH_STEP", "arc_candidates", "cell_residual", "epipolar_directions", "off_arc_supported",
-           "static_explained"]
+__all__ = ["SEARCH_STEP", "arc_candidates", "cell_residual", "epipolar_directions",
+           "off_arc_supported", "static_explained"]
 
 
 def cell_residual(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArray[np.float32],
@@ -94,7 +95,7 @@ def _cell_residuals(prev, curr, flow, grid, cells, shifts) -> list[NDArray[np.fl
     from ._grid_kernels import block_residuals  # numba on first use: a light import
 
     outs = [np.full(cells.shape, np.nan, np.float32) for _ in shifts]
-    r, c = np.nonzero(cells)
+    r, c = (np.ascontiguousarray(i) for i in np.nonzero(cells))  # one kernel signature
     if len(r) == 0:
         return outs
     values = np.empty(len(r))
@@ -207,7 +208,9 @@ def arc_candidates(rays0: NDArray[np.float64], arc: NDArray[np.float64], pose0: 
     if not b > 0:
         return np.full((*angles.shape, 3), np.nan)
     e = pose1[:3, :3].T @ (baseline / b)  # e' in the current camera's frame
-    towards = e - (arc @ e)[:, None] * arc  # in the circle's plane, at right angles to arc
+    p = rays0 @ (pose1[:3, :3].T @ pose0[:3, :3]).T  # rays0 in the current camera's frame
+    # The circle's tangent at arc, towards e' (well defined at e' itself too).
+    towards = np.cross(np.cross(p, e), arc)
     with np.errstate(invalid="ignore", divide="ignore"):
         towards /= np.linalg.norm(towards, axis=-1, keepdims=True)
     turned = (np.cos(angles)[..., None] * arc + np.sin(angles)[..., None] * towards)
@@ -232,14 +235,20 @@ def off_arc_supported(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
     shifts = shift[None] if shift.ndim == 2 else shift
     if measured is None:
         measured = cell_residual(prev, curr, flow, grid, cells)
+    from ._grid_kernels import block_residuals  # numba on first use: a light import
+
     r, c = np.nonzero(cells)
-    best = np.full(len(r), np.nan)  # the best moved residual; NaN: none sampled
-    shifted = np.zeros(len(r), bool)  # a finite shift was tried
+    m, n = shifts.shape[:2]
     finites = np.isfinite(shifts).all(axis=-1)
-    moves = _cell_residuals(prev, curr, flow, grid, cells,
-                            tuple(np.where(finites[..., None], shifts, 0.0)))
-    for finite, moved in zip(finites, moves, strict=True):
-        moved = moved[r, c]
+    moves = np.empty(m * n)  # every candidate of every cell in one pass
+    if n:
+        block_residuals(np.ascontiguousarray(prev), np.ascontiguousarray(curr),
+                        np.ascontiguousarray(flow, np.float32), np.tile(r, m), np.tile(c, m),
+                        int(grid), np.where(finites[..., None], shifts, 0.0).reshape(m * n, 2),
+                        moves)
+    best = np.full(n, np.nan)  # the best moved residual; NaN: none sampled
+    shifted = np.zeros(n, bool)  # a finite shift was tried
+    for finite, moved in zip(finites, moves.reshape(m, n), strict=True):
         with np.errstate(invalid="ignore"):
             better = finite & (np.isnan(best) | (moved < best))
         best[better] = moved[better]

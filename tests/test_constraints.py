@@ -292,6 +292,43 @@ def test_road_from_the_papers_inputs_and_from_a_vehicle_pose():
         fm.Road(normal=(0, 0, 0))
 
 
+@given(ego_motions())
+def test_arc_candidates_are_static_points_spaced_along_the_arc(case):
+    """Every candidate of the off-arc test's search is a static point's ray (the constraints'
+    epipolar and depth deviations 0), angle 0 is the point searched around, and unclamped
+    candidates are the given angles apart along the epipolar circle."""
+    from fisheyemotion.constraints import nearest_static_ray
+    from fisheyemotion.photometric import arc_candidates
+
+    rng, pose0, pose1 = case
+    x = scene_points(rng, pose0)
+    p, q = rays_of(x, pose0), rays_of(x, pose1)
+    noisy = q + rng.normal(scale=0.05, size=q.shape)
+    noisy /= np.linalg.norm(noisy, axis=-1, keepdims=True)
+    arc = nearest_static_ray(p, noisy, pose0, pose1)
+    step = rng.uniform(1e-4, 3e-3, len(p))
+    angles = np.arange(-4, 5)[:, None] * step
+    cand = arc_candidates(p, arc, pose0, pose1, angles)
+    assert cand.shape == (9, len(p), 3)
+    np.testing.assert_allclose(cand[4], arc, atol=1e-9)
+    flat = cand.reshape(-1, 3)
+    ok = np.isfinite(flat).all(axis=-1)
+    r = fm.constraints(np.tile(p, (9, 1))[ok], flat[ok], pose0, pose1)
+    assert r.valid.mean() > 0.9
+    assert np.abs(r.epipolar[r.valid]).max() < 1e-9 and np.abs(r.depth[r.valid]).max() < 1e-9
+    # Neighbours inside the arc are one step apart on the circle; clamped ones sit at its ends,
+    # e' (range 0) and the rotated p (range infinite).
+    b = pose0[:3, 3] - pose1[:3, 3]
+    ends = (pose1[:3, :3].T @ (b / np.linalg.norm(b)), p @ (pose1[:3, :3].T @ pose0[:3, :3]).T)
+    inside = np.all([np.linalg.norm(cand - end, axis=-1) > 1e-7 for end in ends], axis=0)
+    gap = np.arccos(np.clip(np.einsum("mij,mij->mi", cand[1:], cand[:-1]), -1, 1))
+    both = inside[1:] & inside[:-1]
+    assert both.mean() > 0.5
+    np.testing.assert_allclose(gap[both], np.broadcast_to(step, gap.shape)[both], rtol=1e-5)
+    assert (gap <= step * (1 + 1e-5) + 1e-12).all()       # clamping only shortens a gap
+    assert np.isnan(arc_candidates(p, arc, pose0, pose0, angles)).all()   # no baseline
+
+
 def test_road_moves_with_a_change_of_world_frame():
     road = fm.Road(normal=(0, 0, 1), offset=0.2)
     t = make_transform(random_rotation(np.random.default_rng(8)), [1.0, 2.0, 3.0])

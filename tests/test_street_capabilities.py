@@ -520,6 +520,42 @@ def test_photometric_check_removes_a_flow_error_on_static_structure_and_keeps_th
     np.testing.assert_array_equal(masks[True] & car, masks[False] & car)
 
 
+def test_the_off_arc_test_compares_with_the_best_static_correspondence_not_only_the_nearest():
+    """A flow error along vertical stripes (photometrically free) whose nearest arc point is
+    1.5 px off the true one in u: the nearest point explains the frames badly, so the deviation
+    looks supported; among the candidates along the arc the true correspondence explains them
+    as well as the measured flow, and the deviation is not supported."""
+    from fisheyemotion.photometric import off_arc_supported
+
+    rng = np.random.default_rng(3)
+    stripes = np.tile(cv2.GaussianBlur(rng.integers(0, 255, (1, 120), dtype=np.uint8),
+                                       (3, 1), 0.7), (90, 1))
+    curr = np.roll(stripes, 3, axis=1)                     # the static truth: 3 px right
+    flow = np.zeros((90, 120, 2), np.float32)
+    flow[..., 0], flow[..., 1] = 3.0, 3.125                # measured: 3.125 px too far down
+    cells = np.zeros((18, 24), bool)
+    cells[4:-4, 4:-4] = True
+    n = int(cells.sum())
+    d = np.array([0.6, 0.8])                               # the arc's direction in the image
+    nearest = np.array([3.0, 0.0]) + (np.array([0.0, 3.125]) @ d) * d   # truth + 2.5 d
+    candidates = nearest + np.arange(-8, 9)[:, None] * 0.5 * d        # 4 px either way
+
+    def to_shift(points):  # a point of the current image as a shift of the measured flow
+        return np.broadcast_to(points - [3.0, 3.125], (n, 2))
+
+    alone = off_arc_supported(stripes, curr, flow, 5, 10.0, cells, to_shift(nearest))
+    searched = off_arc_supported(stripes, curr, flow, 5, 10.0, cells,
+                                 np.stack([to_shift(c) for c in candidates]))
+    assert alone[cells].all() and not searched.any()
+    # The best candidate counts, wherever it is among them, and only finite ones are tried.
+    some = np.stack([to_shift(candidates[0]), to_shift(candidates[-1])])
+    assert off_arc_supported(stripes, curr, flow, 5, 10.0, cells, some)[cells].all()
+    with_nan = np.stack([to_shift(candidates[3]), np.full((n, 2), np.nan)])  # 3: the truth
+    assert not off_arc_supported(stripes, curr, flow, 5, 10.0, cells, with_nan).any()
+    assert off_arc_supported(stripes, curr, flow, 5, 10.0, cells,
+                             np.full((2, n, 2), np.nan))[cells].all()  # no arc: supported
+
+
 def test_a_deviation_along_an_edge_is_not_supported_by_the_images_and_one_across_it_is():
     """The aperture problem: along vertical stripes a flow error in v changes nothing in the
     images, so moving it away (onto the arc) is not contradicted; a random texture contradicts."""
