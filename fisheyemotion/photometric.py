@@ -62,8 +62,8 @@ _STEP = 1e-4  # radians along the epipolar circle, either way, for its image dir
 #: (``Params.photometric_search``).
 SEARCH_STEP = 1.0
 
-__all__ = ["SEARCH_STEP", "arc_candidates", "cell_residual", "epipolar_directions",
-           "off_arc_supported", "static_explained"]
+__all__ = ["SEARCH_STEP", "arc_candidates", "best_candidate", "cell_residual",
+           "epipolar_directions", "off_arc_supported", "static_explained"]
 
 
 def cell_residual(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArray[np.float32],
@@ -219,6 +219,48 @@ def arc_candidates(rays0: NDArray[np.float64], arc: NDArray[np.float64], pose0: 
     return out.reshape(m, n, 3)
 
 
+def best_candidate(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArray[np.float32],
+                   grid: int, cells: NDArray[np.bool_], shifts: NDArray
+                   ) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
+    """The candidate that explains each cell best: the smallest :func:`cell_residual` of the
+    flow moved by each of ``shifts``.
+
+    Parameters
+    ----------
+    prev, curr : ndarray of uint8, shape (H, W)
+    flow : ndarray of float32, shape (H, W, 2)
+    grid : int
+    cells : ndarray of bool, shape (H // grid, W // grid)
+        The ``n`` cells, row-major.
+    shifts : ndarray, shape (m, n, 2)
+        Pixels, ``m`` candidates per cell; a non-finite one is not tried.
+
+    Returns
+    -------
+    index : ndarray of int, shape (n,)
+        The best candidate's row of ``shifts``; -1 where none was tried or sampled.
+    residual : ndarray of float64, shape (n,)
+        Its residual, grey levels; NaN where ``index`` is -1.
+    """
+    from ._grid_kernels import block_residuals  # numba on first use: a light import
+
+    shifts = np.asarray(shifts, np.float64)
+    r, c = (np.ascontiguousarray(i) for i in np.nonzero(cells))
+    m, n = shifts.shape[:2]
+    finites = np.isfinite(shifts).all(axis=-1)
+    moves = np.empty(m * n)  # every candidate of every cell in one pass
+    if n:
+        block_residuals(np.ascontiguousarray(prev), np.ascontiguousarray(curr),
+                        np.ascontiguousarray(flow, np.float32), np.tile(r, m), np.tile(c, m),
+                        int(grid), np.where(finites[..., None], shifts, 0.0).reshape(m * n, 2),
+                        moves)
+    moves = np.where(finites, moves.reshape(m, n), np.nan)
+    tried = np.isfinite(moves).any(axis=0)
+    index = np.where(tried, np.argmin(np.where(np.isnan(moves), np.inf, moves), axis=0), -1)
+    residual = np.where(tried, moves[np.maximum(index, 0), np.arange(n)], np.nan)
+    return index, residual
+
+
 def off_arc_supported(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
                       flow: NDArray[np.float32], grid: int, margin: float,
                       cells: NDArray[np.bool_], shift: NDArray,
@@ -228,31 +270,16 @@ def off_arc_supported(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
     epipolar arc (module doc) -- than every one of the shifts, with several.
 
     ``shift`` is ``(n, 2)`` pixels, one row per cell of ``cells`` in row-major order, or
-    ``(m, n, 2)``: ``m`` candidates per cell (:func:`arc_candidates`), of which the best counts.
-    False elsewhere; True where no shift of the cell is finite. ``measured``: the flow's
-    :func:`cell_residual` at ``cells``, if the caller has it."""
+    ``(m, n, 2)``: ``m`` candidates per cell (:func:`arc_candidates`), of which the best counts
+    (:func:`best_candidate`). False elsewhere; True where no shift of the cell is finite.
+    ``measured``: the flow's :func:`cell_residual` at ``cells``, if the caller has it."""
     shift = np.asarray(shift, np.float64)
     shifts = shift[None] if shift.ndim == 2 else shift
     if measured is None:
         measured = cell_residual(prev, curr, flow, grid, cells)
-    from ._grid_kernels import block_residuals  # numba on first use: a light import
-
     r, c = np.nonzero(cells)
-    m, n = shifts.shape[:2]
-    finites = np.isfinite(shifts).all(axis=-1)
-    moves = np.empty(m * n)  # every candidate of every cell in one pass
-    if n:
-        block_residuals(np.ascontiguousarray(prev), np.ascontiguousarray(curr),
-                        np.ascontiguousarray(flow, np.float32), np.tile(r, m), np.tile(c, m),
-                        int(grid), np.where(finites[..., None], shifts, 0.0).reshape(m * n, 2),
-                        moves)
-    best = np.full(n, np.nan)  # the best moved residual; NaN: none sampled
-    shifted = np.zeros(n, bool)  # a finite shift was tried
-    for finite, moved in zip(finites, moves.reshape(m, n), strict=True):
-        with np.errstate(invalid="ignore"):
-            better = finite & (np.isnan(best) | (moved < best))
-        best[better] = moved[better]
-        shifted |= finite
+    shifted = np.isfinite(shifts).all(axis=-1).any(axis=0)  # a finite shift was tried
+    _, best = best_candidate(prev, curr, flow, grid, cells, shifts)
     out = np.zeros(cells.shape, bool)
     with np.errstate(invalid="ignore"):
         out[r, c] = (best > measured[r, c] + margin) | ~shifted

@@ -525,7 +525,7 @@ def test_the_off_arc_test_compares_with_the_best_static_correspondence_not_only_
     1.5 px off the true one in u: the nearest point explains the frames badly, so the deviation
     looks supported; among the candidates along the arc the true correspondence explains them
     as well as the measured flow, and the deviation is not supported."""
-    from fisheyemotion.photometric import off_arc_supported
+    from fisheyemotion.photometric import best_candidate, off_arc_supported
 
     rng = np.random.default_rng(3)
     stripes = np.tile(cv2.GaussianBlur(rng.integers(0, 255, (1, 120), dtype=np.uint8),
@@ -554,6 +554,11 @@ def test_the_off_arc_test_compares_with_the_best_static_correspondence_not_only_
     assert not off_arc_supported(stripes, curr, flow, 5, 10.0, cells, with_nan).any()
     assert off_arc_supported(stripes, curr, flow, 5, 10.0, cells,
                              np.full((2, n, 2), np.nan))[cells].all()  # no arc: supported
+    index, residual = best_candidate(stripes, curr, flow, 5, cells,
+                                     np.stack([to_shift(c) for c in candidates]))
+    assert (index == 3).all() and residual.max() < 1.0          # the truth, to its bilinear error
+    index, residual = best_candidate(stripes, curr, flow, 5, cells, np.full((2, n, 2), np.nan))
+    assert (index == -1).all() and np.isnan(residual).all()
 
 
 def test_a_deviation_along_an_edge_is_not_supported_by_the_images_and_one_across_it_is():
