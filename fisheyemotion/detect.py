@@ -585,9 +585,7 @@ class MotionDetector:
         sigma = None
         if (p.significance > 0 or (p.ground_contact and self.road.known)) \
                 and not res.static_camera:
-            if self._pixel_angle is None:
-                self._pixel_angle = pixel_angle(self.camera, self._centres)
-            sigma = cell_sigma(flow, p.grid, self._pixel_angle, floor=p.flow_sigma,
+            sigma = cell_sigma(flow, p.grid, self._cell_pixel_angle(), floor=p.flow_sigma,
                                mean=cell_flow)
         if p.significance > 0 and not res.static_camera:
             likelihood = self._with_significance(res, sigma, likelihood)
@@ -657,6 +655,13 @@ class MotionDetector:
         return self._assemble(flow, cell_flow, res, likelihood, valid, stream=m.stream,
                               seeds=seeds, curr=curr, static_flow=static_flow)
 
+    def _cell_pixel_angle(self) -> NDArray[np.float64]:
+        """Radians per pixel at each cell centre (:func:`~fisheyemotion.significance.pixel_angle`),
+        computed on first use."""
+        if self._pixel_angle is None:
+            self._pixel_angle = pixel_angle(self.camera, self._centres)
+        return self._pixel_angle
+
     def _supported_off_arc(self, seeds, flow, cell_flow, rays1, t0, t1, gray, curr, sigma,
                            measured, road: Road) -> NDArray[np.bool_]:
         """The seed cells whose evidence the images support (:mod:`fisheyemotion.photometric`):
@@ -682,11 +687,9 @@ class MotionDetector:
         # the arc's deviations do not make the cell a seed anyway.
         search = off_arc[r, c] & ~scored
         if p.photometric_search > 0 and search.any():
-            if self._pixel_angle is None:
-                self._pixel_angle = pixel_angle(self.camera, self._centres)
             reach = np.arange(-p.photometric_search, p.photometric_search + 1e-9, SEARCH_STEP)
-            candidates = arc_candidates(rays0[search], arc[search], t0, t1,
-                                        reach[:, None] * self._pixel_angle[r[search], c[search]])
+            angle = self._cell_pixel_angle()[r[search], c[search]]
+            candidates = arc_candidates(rays0[search], arc[search], t0, t1, reach[:, None] * angle)
             at, _ = self.camera.project(candidates)
             cells = np.zeros_like(seeds)
             cells[r[search], c[search]] = True

@@ -92,20 +92,31 @@ def cell_residual(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArra
 def _cell_residuals(prev, curr, flow, grid, cells, shifts) -> list[NDArray[np.float32]]:
     """:func:`cell_residual` of ``cells`` for ``flow`` moved by each of ``shifts`` (``(n, 2)``
     pixels, one row per cell of ``cells`` in row-major order; None: not moved)."""
-    from ._grid_kernels import block_residuals  # numba on first use: a light import
-
     outs = [np.full(cells.shape, np.nan, np.float32) for _ in shifts]
-    r, c = (np.ascontiguousarray(i) for i in np.nonzero(cells))  # one kernel signature
+    r, c = np.nonzero(cells)
     if len(r) == 0:
         return outs
-    values = np.empty(len(r))
-    prev, curr = np.ascontiguousarray(prev), np.ascontiguousarray(curr)
-    flow = np.ascontiguousarray(flow, np.float32)
-    for out, shift in zip(outs, shifts, strict=True):
-        shift = np.zeros((len(r), 2)) if shift is None else np.ascontiguousarray(shift, np.float64)
-        block_residuals(prev, curr, flow, r, c, int(grid), shift, values)
-        out[r, c] = values
+    values = _residuals(prev, curr, flow, grid, cells, np.stack(
+        [np.zeros((len(r), 2)) if shift is None else shift for shift in shifts]))
+    for out, row in zip(outs, values, strict=True):
+        out[r, c] = row
     return outs
+
+
+def _residuals(prev, curr, flow, grid, cells, shifts) -> NDArray[np.float64]:
+    """``(m, n)``: the residual of each of the ``n`` cells of ``cells`` (row-major) for
+    ``flow`` moved by each of ``shifts`` (``(m, n, 2)`` finite pixels), in one kernel pass."""
+    from ._grid_kernels import block_residuals  # numba on first use: a light import
+
+    r, c = (np.ascontiguousarray(i) for i in np.nonzero(cells))  # one kernel signature
+    m, n = shifts.shape[:2]
+    values = np.empty(m * n)
+    if n:
+        block_residuals(np.ascontiguousarray(prev), np.ascontiguousarray(curr),
+                        np.ascontiguousarray(flow, np.float32), np.tile(r, m), np.tile(c, m),
+                        int(grid), np.ascontiguousarray(shifts, np.float64).reshape(m * n, 2),
+                        values)
+    return values.reshape(m, n)
 
 
 def epipolar_directions(camera: CameraModel, pixels: NDArray, pose0: NDArray, pose1: NDArray
@@ -242,19 +253,11 @@ def best_candidate(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArr
     residual : ndarray of float64, shape (n,)
         Its residual, grey levels; NaN where ``index`` is -1.
     """
-    from ._grid_kernels import block_residuals  # numba on first use: a light import
-
     shifts = np.asarray(shifts, np.float64)
-    r, c = (np.ascontiguousarray(i) for i in np.nonzero(cells))
-    m, n = shifts.shape[:2]
+    n = shifts.shape[1]
     finites = np.isfinite(shifts).all(axis=-1)
-    moves = np.empty(m * n)  # every candidate of every cell in one pass
-    if n:
-        block_residuals(np.ascontiguousarray(prev), np.ascontiguousarray(curr),
-                        np.ascontiguousarray(flow, np.float32), np.tile(r, m), np.tile(c, m),
-                        int(grid), np.where(finites[..., None], shifts, 0.0).reshape(m * n, 2),
-                        moves)
-    moves = np.where(finites, moves.reshape(m, n), np.nan)
+    moves = _residuals(prev, curr, flow, grid, cells, np.where(finites[..., None], shifts, 0.0))
+    moves = np.where(finites, moves, np.nan)
     tried = np.isfinite(moves).any(axis=0)
     index = np.where(tried, np.argmin(np.where(np.isnan(moves), np.inf, moves), axis=0), -1)
     residual = np.where(tried, moves[np.maximum(index, 0), np.arange(n)], np.nan)
