@@ -78,6 +78,15 @@ _LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
 _EYE3 = np.eye(3)
 
 
+def rotate(vectors: NDArray, rotation: NDArray) -> NDArray[np.float64]:
+    """``rotation @ v`` for every vector ``v`` of ``vectors`` (..., 3); ``rotation`` (3, 3).
+
+    numpy's matmul takes a generic loop, 3-4x slower, when its 3x3 operand is a transposed
+    view (``vectors @ R.T``); with a contiguous copy it gives the same bits through BLAS.
+    """
+    return vectors @ np.ascontiguousarray(np.asarray(rotation).T)
+
+
 def make_transform(rotation: ArrayLike, translation: ArrayLike) -> NDArray[np.float64]:
     """4x4 matrix ``[[R, t], [0, 1]]``."""
     out = np.eye(4)

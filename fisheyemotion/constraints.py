@@ -32,7 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import _warmup
 from .calib._arrays import as_points
-from .calib.transforms import check_rigid
+from .calib.transforms import check_rigid, rotate
 from .params import Params
 from .road import Road
 
@@ -124,8 +124,8 @@ def constraints(
     if b < params.min_baseline:
         # Camera standing still: the angle the rotation-compensated ray moved.
         with np.errstate(invalid="ignore", over="ignore"):
-            p = _unit(p_flat @ t0[:3, :3].T)
-            q = _unit(q_flat @ t1[:3, :3].T)
+            p = _unit(rotate(p_flat, t0[:3, :3]))
+            q = _unit(rotate(q_flat, t1[:3, :3]))
         finite = np.isfinite(p).all(axis=-1) & np.isfinite(q).all(axis=-1)
         xi = np.linalg.norm(np.cross(q, p), axis=-1)
         zeros = np.zeros(len(p))

@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .calib.base import CameraModel
-from .calib.transforms import make_transform
+from .calib.transforms import make_transform, rotate
 from .tracks import track_corners
 
 __all__ = ["PoseTracker", "dominant_background_pose", "relative_pose", "road_depth",
@@ -170,7 +170,7 @@ def road_depth(rays0: NDArray[np.float64], rays1: NDArray[np.float64],
     pose0, pose1 = np.eye(4), np.linalg.inv(cam1_from_cam0)
     up = level_up(pose0, pose1)
     rotation, t = cam1_from_cam0[:3, :3], cam1_from_cam0[:3, 3]
-    normal = np.cross(t, rays0 @ rotation.T)  # the epipolar plane of each pair, camera 1
+    normal = np.cross(t, rotate(rays0, rotation))  # the epipolar plane of each pair, camera 1
     with np.errstate(invalid="ignore", divide="ignore"):
         off_plane = np.abs(np.einsum("ij,ij->i", normal, rays1)) / np.linalg.norm(normal, axis=-1)
         low = (-(rays0 @ up) > math.sin(math.radians(ROAD_ELEVATION))) & (

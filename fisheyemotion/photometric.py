@@ -55,6 +55,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .calib.base import CameraModel
+from .calib.transforms import rotate
 from .constraints import nearest_static_ray
 
 _STEP = 1e-4  # radians along the epipolar circle, either way, for its image direction
@@ -219,7 +220,7 @@ def arc_candidates(rays0: NDArray[np.float64], arc: NDArray[np.float64], pose0: 
     if not b > 0:
         return np.full((*angles.shape, 3), np.nan)
     e = pose1[:3, :3].T @ (baseline / b)  # e' in the current camera's frame
-    p = rays0 @ (pose1[:3, :3].T @ pose0[:3, :3]).T  # rays0 in the current camera's frame
+    p = rotate(rays0, pose1[:3, :3].T @ pose0[:3, :3])  # rays0 in the current camera's frame
     # The circle's tangent at arc, towards e' (well defined at e' itself too).
     towards = np.cross(np.cross(p, e), arc)
     with np.errstate(invalid="ignore", divide="ignore"):

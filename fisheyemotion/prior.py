@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .calib.base import CameraModel
+from .calib.transforms import rotate
 from .road import Road
 from .static_scene import StaticScene
 
@@ -52,7 +53,7 @@ def static_scene_targets(camera: CameraModel, rays: NDArray[np.float64], pose0: 
         In the ``pose1`` image; NaN where the point leaves the camera's domain.
     valid : ndarray of bool, shape (...)
     """
-    dirs = rays @ pose0[:3, :3].T
+    dirs = rotate(rays, pose0[:3, :3])
     centre0 = pose0[:3, 3]
     depth = np.minimum(road.ray_range(centre0, dirs, min_down=_HORIZON_SIN), distance)
     if ranges is not None:

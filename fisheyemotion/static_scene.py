@@ -43,6 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .calib.base import CameraModel
+from .calib.transforms import rotate
 
 __all__ = ["StaticScene", "TRIANGULATION_PARALLAX", "triangulate_range", "world_points"]
 
@@ -82,8 +83,8 @@ def triangulate_range(rays0: NDArray[np.float64], rays1: NDArray[np.float64], po
     parallax : ndarray, shape (...)
         With ``with_parallax``: the sine of the angle between the rays (NaN where not finite).
     """
-    p = rays0 @ pose0[:3, :3].T
-    q = rays1 @ pose1[:3, :3].T
+    p = rotate(rays0, pose0[:3, :3])
+    q = rotate(rays1, pose1[:3, :3])
     d = pose1[:3, 3] - pose0[:3, 3]
     a = np.einsum("...i,...i->...", p, q)
     dp, dq = p @ d, q @ d
@@ -101,7 +102,7 @@ def world_points(rays: NDArray[np.float64], ranges: NDArray[np.float64],
                  pose: NDArray) -> NDArray[np.float64]:
     """World points ``(..., 3)`` at ``ranges`` (...) along camera-frame ``rays`` (..., 3) of the
     camera at ``pose`` (``world_from_cam``)."""
-    return pose[:3, 3] + ranges[..., None] * (rays @ pose[:3, :3].T)
+    return pose[:3, 3] + ranges[..., None] * rotate(rays, pose[:3, :3])
 
 
 class StaticScene:
