@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from fisheyemotion.calib.transforms import make_transform, matrix_to_quat
+from fisheyemotion.calib.transforms import make_transform, matrix_to_quat, rotate
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -57,6 +57,24 @@ def test_interpolation_is_linear_in_translation_and_slerp_in_rotation(w):
     total = np.arccos(np.clip((np.trace(rel) - 1) / 2, -1, 1))
     part = np.arccos(np.clip((np.trace(POSES[0, :3, :3].T @ got[:3, :3]) - 1) / 2, -1, 1))
     assert part == pytest.approx(w * total, abs=1e-7)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), shape=st.sampled_from([(3,), (7, 3), (4, 5, 3)]))
+def test_rotate_is_the_rotation_of_every_vector_whatever_the_rotations_layout(seed, shape):
+    """``rotate(v, R)`` is ``R @ v`` per vector, for R given as a pose's 3x3 block or as its
+    transposed view (the layouts the engine passes), NaN vectors staying NaN."""
+    rng = np.random.default_rng(seed)
+    pose = make_transform(random_rotation(rng), rng.normal(size=3))
+    vectors = rng.normal(size=shape) * 10.0 ** rng.uniform(-3, 3)
+    vectors.reshape(-1, 3)[0] = np.nan
+    for r in (pose[:3, :3], pose[:3, :3].T, np.ascontiguousarray(pose[:3, :3])):
+        expected = np.einsum("ij,...j->...i", r, vectors)
+        got = rotate(vectors, r)
+        assert got.shape == vectors.shape
+        np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-12 * np.nanmax(
+            np.abs(vectors)))
+        assert np.isnan(got.reshape(-1, 3)[0]).all()
 
 
 def test_frames_without_a_pose_are_errors_naming_the_frame():
