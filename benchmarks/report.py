@@ -26,6 +26,8 @@ PEERS = {
 def _peer(group: str) -> str | None:
     if group.startswith("detect-"):
         return "test_detect_stage[flow_alone"
+    if group.startswith("street-"):
+        return "test_detect_street_pair[flow_alone"
     return PEERS.get(group)
 
 
@@ -41,6 +43,9 @@ TARGETS = (
     ("defaults' non-flow work <= 5 ms (the cluttered-streets issue's budget)",
      "test_detect_stage[default_after_flow-farneback-1t]",
      "test_detect_stage[flow_alone-farneback-1t]", "ms", 5.0, True),
+    ("the same on a cluttered street's pair with regions (Farneback, 1 thread)",
+     "test_detect_street_pair[default_after_flow-farneback]",
+     "test_detect_street_pair[flow_alone-farneback]", "ms", 5.0, True),
     ("DIS ultrafast defaults >= 150 fps on one core (stream, apply())",
      "test_stream_640x480[apply-dis-ultrafast-1t]", None, "fps", 150.0, False),
     ("DIS ultrafast defaults >= 150 fps with stream() on both cores (OpenCV 1 thread)",

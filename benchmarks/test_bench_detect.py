@@ -119,12 +119,76 @@ def test_detect_stage(benchmark, frames, name, stage, threads):
             benchmark(paper._assemble, flow, cells, res, res.likelihood, valid)
 
 
+@pytest.fixture(scope="module")
+def street_pair():
+    """Frames 20 and 23 of the tuning street (parked cars, walls, a crossing pedestrian): a pair
+    with regions, where the photometric check, the ground-contact test and the growth to the
+    objects' extent have work (the `crossing` pair above has none)."""
+    r = synth.Renderer(CAM, synth.load_scenario("street"))
+    f0, f1 = r.render(20), r.render(23)
+    return _gray(f0), _gray(f1), f0.pose, f1.pose, r.roi()
+
+
+@pytest.mark.parametrize("name", ["farneback", "dis-ultrafast"])
+@pytest.mark.parametrize("stage", ["flow_alone", "default_after_flow"])
+def test_detect_street_pair(benchmark, street_pair, name, stage):
+    """``default_after_flow`` of :func:`test_detect_stage` on a cluttered street's pair, cv2 on
+    one thread."""
+    g0, g1, p0, p1, roi = street_pair
+    benchmark.group = f"street-{name}-1t"
+    det = fm.MotionDetector(CAM, params=fm.Params(**CONFIGS[name]), roi=roi)
+    if stage == "flow_alone":
+        benchmark(det._flow, g0, g1)
+        return
+    flow = det.flow(g0, g1, p0, p1)
+    for _ in range(3):  # a scene model, as in a stream
+        det.detect_flow(flow, p0, p1, prev=g0, curr=g1, stream=True)
+
+    def setup():  # untimed: the flow leaves the caches as a real stream finds them
+        return (det.flow(g0, g1, p0, p1), p0, p1), {"prev": g0, "curr": g1, "stream": True}
+
+    result = benchmark.pedantic(det.detect_flow, setup=setup, rounds=40, warmup_rounds=2)
+    assert result.regions  # the point of this pair
+
+
 @pytest.mark.benchmark(group="render-640x480")
 def test_render_frame(benchmark):
     r = synth.Renderer(CAM, SCENARIO)
     r.render(0)
     counter = iter(range(1, 10_000))
     benchmark.pedantic(lambda: r.render(next(counter)), rounds=5, iterations=1)
+
+
+@pytest.fixture(scope="module")
+def street_pair():
+    """Frames 20 and 23 of the tuning street (parked cars, walls, a crossing pedestrian): a pair
+    with regions, where the photometric check, the ground-contact test and the growth to the
+    objects' extent have work (the `crossing` pair above has none)."""
+    r = synth.Renderer(CAM, synth.load_scenario("street"))
+    f0, f1 = r.render(20), r.render(23)
+    return _gray(f0), _gray(f1), f0.pose, f1.pose, r.roi()
+
+
+@pytest.mark.parametrize("name", ["farneback", "dis-ultrafast"])
+@pytest.mark.parametrize("stage", ["flow_alone", "default_after_flow"])
+def test_detect_street_pair(benchmark, street_pair, name, stage):
+    """``default_after_flow`` of :func:`test_detect_stage` on a cluttered street's pair, cv2 on
+    one thread."""
+    g0, g1, p0, p1, roi = street_pair
+    benchmark.group = f"street-{name}-1t"
+    det = fm.MotionDetector(CAM, params=fm.Params(**CONFIGS[name]), roi=roi)
+    if stage == "flow_alone":
+        benchmark(det._flow, g0, g1)
+        return
+    flow = det.flow(g0, g1, p0, p1)
+    for _ in range(3):  # a scene model, as in a stream
+        det.detect_flow(flow, p0, p1, prev=g0, curr=g1, stream=True)
+
+    def setup():  # untimed: the flow leaves the caches as a real stream finds them
+        return (det.flow(g0, g1, p0, p1), p0, p1), {"prev": g0, "curr": g1, "stream": True}
+
+    result = benchmark.pedantic(det.detect_flow, setup=setup, rounds=40, warmup_rounds=2)
+    assert result.regions  # the point of this pair
 
 
 @pytest.mark.benchmark(group="render-640x480")
