@@ -16,4 +16,4 @@ __all__ = [
     "ConstraintResult", "Detection", "Grid", "MotionDetector", "Params", "Region", "Road",
     "calib", "constraints", "detect",
 ]
-__version__ = "0.8.0"
+__version__ = "0.8.1"
