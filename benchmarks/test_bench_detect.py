@@ -46,6 +46,19 @@ CONFIGS = {
 }
 
 
+def _after_flow(benchmark, det, g0, g1, p0, p1):
+    """Time ``det.detect_flow`` on the pair, each round right after a real flow call (untimed),
+    which leaves the caches as a stream finds them; three passes first build a scene model."""
+    flow = det.flow(g0, g1, p0, p1)
+    for _ in range(3):
+        det.detect_flow(flow, p0, p1, prev=g0, curr=g1, stream=True)
+
+    def setup():
+        return (det.flow(g0, g1, p0, p1), p0, p1), {"prev": g0, "curr": g1, "stream": True}
+
+    return benchmark.pedantic(det.detect_flow, setup=setup, rounds=40, warmup_rounds=2)
+
+
 THREADED = ("flow_alone", "paper_pipeline", "default_pipeline", "default_after_flow")
 
 
@@ -95,14 +108,7 @@ def test_detect_stage(benchmark, frames, name, stage, threads):
         # regions to their objects' extent: its cost is the difference)
         extent = {} if stage == "default_after_flow" else {"extent_reach": 0.0}
         det = fm.MotionDetector(CAM, params=fm.Params(**CONFIGS[name], **extent), roi=roi)
-        flow = det.flow(g0, g1, p0, p1)
-        for _ in range(3):
-            det.detect_flow(flow, p0, p1, prev=g0, curr=g1, stream=True)
-
-        def setup():  # untimed: the flow leaves the caches as a real stream finds them
-            return (det.flow(g0, g1, p0, p1), p0, p1), {"prev": g0, "curr": g1, "stream": True}
-
-        benchmark.pedantic(det.detect_flow, setup=setup, rounds=40, warmup_rounds=2)
+        _after_flow(benchmark, det, g0, g1, p0, p1)
     else:
         flow = paper._flow(g0, g1)
         cells = grid_average(flow, 5)
@@ -140,15 +146,7 @@ def test_detect_street_pair(benchmark, street_pair, name, stage):
     if stage == "flow_alone":
         benchmark(det._flow, g0, g1)
         return
-    flow = det.flow(g0, g1, p0, p1)
-    for _ in range(3):  # a scene model, as in a stream
-        det.detect_flow(flow, p0, p1, prev=g0, curr=g1, stream=True)
-
-    def setup():  # untimed: the flow leaves the caches as a real stream finds them
-        return (det.flow(g0, g1, p0, p1), p0, p1), {"prev": g0, "curr": g1, "stream": True}
-
-    result = benchmark.pedantic(det.detect_flow, setup=setup, rounds=40, warmup_rounds=2)
-    assert result.regions  # the point of this pair
+    assert _after_flow(benchmark, det, g0, g1, p0, p1).regions  # the point of this pair
 
 
 @pytest.mark.benchmark(group="render-640x480")
@@ -157,38 +155,6 @@ def test_render_frame(benchmark):
     r.render(0)
     counter = iter(range(1, 10_000))
     benchmark.pedantic(lambda: r.render(next(counter)), rounds=5, iterations=1)
-
-
-@pytest.fixture(scope="module")
-def street_pair():
-    """Frames 20 and 23 of the tuning street (parked cars, walls, a crossing pedestrian): a pair
-    with regions, where the photometric check, the ground-contact test and the growth to the
-    objects' extent have work (the `crossing` pair above has none)."""
-    r = synth.Renderer(CAM, synth.load_scenario("street"))
-    f0, f1 = r.render(20), r.render(23)
-    return _gray(f0), _gray(f1), f0.pose, f1.pose, r.roi()
-
-
-@pytest.mark.parametrize("name", ["farneback", "dis-ultrafast"])
-@pytest.mark.parametrize("stage", ["flow_alone", "default_after_flow"])
-def test_detect_street_pair(benchmark, street_pair, name, stage):
-    """``default_after_flow`` of :func:`test_detect_stage` on a cluttered street's pair, cv2 on
-    one thread."""
-    g0, g1, p0, p1, roi = street_pair
-    benchmark.group = f"street-{name}-1t"
-    det = fm.MotionDetector(CAM, params=fm.Params(**CONFIGS[name]), roi=roi)
-    if stage == "flow_alone":
-        benchmark(det._flow, g0, g1)
-        return
-    flow = det.flow(g0, g1, p0, p1)
-    for _ in range(3):  # a scene model, as in a stream
-        det.detect_flow(flow, p0, p1, prev=g0, curr=g1, stream=True)
-
-    def setup():  # untimed: the flow leaves the caches as a real stream finds them
-        return (det.flow(g0, g1, p0, p1), p0, p1), {"prev": g0, "curr": g1, "stream": True}
-
-    result = benchmark.pedantic(det.detect_flow, setup=setup, rounds=40, warmup_rounds=2)
-    assert result.regions  # the point of this pair
 
 
 @pytest.mark.benchmark(group="render-640x480")
