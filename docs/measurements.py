@@ -157,7 +157,7 @@ def prior_error_at_false_regions(names=("street_kb", "street_heldout_ds")) -> No
     from skimage.measure import label
 
     from fisheyemotion.constraints import constraints
-    from fisheyemotion.detect import CONSTRAINT_NAMES
+    from fisheyemotion.detection import CONSTRAINT_NAMES
     from fisheyemotion.flow import grid_average
 
     p = fm.Params()
@@ -420,7 +420,7 @@ def scene_agreement_tradeoff() -> None:
     from fisheyemotion.eval.evaluate import evaluate, sequence_paths
     from fisheyemotion.eval.report import groups_table
 
-    detect_module = importlib.import_module("fisheyemotion.detect")  # the module, not detect()
+    detect_module = importlib.import_module("fisheyemotion.detector")
     rows = {}
     saved = detect_module.SCENE_AGREEMENT
     variants = (("veto alone", saved, fm.Params(contact_arc=0.0)),

@@ -15,7 +15,8 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from fisheyemotion.detect import CONSTRAINT_NAMES, MotionDetector
+from fisheyemotion.detection import CONSTRAINT_NAMES
+from fisheyemotion.detector import MotionDetector
 from fisheyemotion.frames import to_gray
 from fisheyemotion.params import Params
 from fisheyemotion.road import Road

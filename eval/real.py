@@ -30,7 +30,7 @@ from matplotlib.figure import Figure
 from skimage.measure import label
 
 from fisheyemotion import calib, draw
-from fisheyemotion.detect import MotionDetector
+from fisheyemotion.detector import MotionDetector
 from fisheyemotion.inputs import ImageFolder
 from fisheyemotion.params import Params
 from fisheyemotion.poses import PoseMatcher, read_poses

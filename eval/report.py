@@ -13,7 +13,8 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from fisheyemotion import draw
-from fisheyemotion.detect import CONSTRAINT_NAMES, MotionDetector
+from fisheyemotion.detection import CONSTRAINT_NAMES
+from fisheyemotion.detector import MotionDetector
 from fisheyemotion.params import Params
 from fisheyemotion.sequence import Sequence
 

@@ -6,7 +6,9 @@
 
 from . import calib, draw, poses
 from .constraints import ConstraintResult, constraints
-from .detect import Detection, Grid, MotionDetector, detect
+from .detect import detect
+from .detection import Detection, Grid
+from .detector import MotionDetector
 from .params import Params
 from .road import Road
 from .segment import Region

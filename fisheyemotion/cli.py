@@ -20,7 +20,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from . import calib
-from .detect import MotionDetector
+from .detector import MotionDetector
 from .params import Params
 from .road import Road
 

@@ -297,7 +297,7 @@ def test_a_pedestrian_stepping_out_between_parked_cars_keeps_the_scene_models_ve
     cam = tumvi_kb(640, 480, 200.0)
     veto_only = _exact_flow_run(tmp_path / "a", cam, STEP_OUT, fm.Params(contact_arc=0.0), 16)
     with_arc = _exact_flow_run(tmp_path / "b", cam, STEP_OUT, fm.Params(), 16)
-    monkeypatch.setattr(importlib.import_module("fisheyemotion.detect"), "SCENE_AGREEMENT",
+    monkeypatch.setattr(importlib.import_module("fisheyemotion.detector"), "SCENE_AGREEMENT",
                         np.inf)  # no range ever disagrees: no veto
     no_veto = _exact_flow_run(tmp_path / "c", cam, STEP_OUT, fm.Params(contact_arc=0.0), 16)
     found = {name: int(r.objects.detected.sum())

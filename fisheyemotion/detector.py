@@ -1,0 +1,847 @@
+"""The streaming :class:`MotionDetector` of one camera, in the style of cv2's background
+subtractors: ``apply(frame, pose)`` gives the result on ``frame``'s pixels.
+
+>>> detector = fisheyemotion.MotionDetector(cam)
+>>> for frame, pose in stream:
+...     result = detector.apply(frame, pose)   # None for the first frame
+
+Each frame pair is measured (flow warped by the static-scene prior, the constraints, their
+significance, the ground-contact test, the scene model's update: ``_measure``) and then decided
+(the photometric check's seeds, the growth, the transfer to the current frame, the temporal
+filter, the segmentation and the extent: ``_decide``); :meth:`MotionDetector.stream` runs the
+next pair's flow beside the decision.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import warnings
+from collections import deque
+from collections.abc import Iterable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import NamedTuple
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from . import _warmup
+from .calib.base import CameraModel
+from .calib.transforms import check_rigid
+from .constraints import ConstraintResult, constraints, nearest_static_ray
+from .detection import CONSTRAINT_NAMES, Detection, Grid, LazyMaps
+from .egomotion import PoseTracker
+from .extent import grow_to_extent
+from .flow import (
+    FlowEstimator,
+    grid_average,
+    grid_centres,
+    grid_gather,
+    grid_transfer,
+    grid_upsample,
+    warp_by,
+)
+from .frames import to_gray
+from .ground import GroundEstimator, provisional_road
+from .ground_contact import standing_regions
+from .grow import grow_regions
+from .params import Params
+from .photometric import (
+    SEARCH_STEP,
+    arc_candidates,
+    cell_residual,
+    epipolar_directions,
+    off_arc_supported,
+    static_explained,
+)
+from .prior import EgoFlowPrior, lands_on, static_scene_targets
+from .range_consistency import RangeMemory
+from .refinement import PoseRefiner
+from .road import Road
+from .segment import segment_cells
+from .significance import cell_sigma, pixel_angle
+from .static_scene import TRIANGULATION_PARALLAX, StaticScene, triangulate_range, world_points
+
+#: Share of the image flagged moving above which a given road (or the poses) is suspect.
+FLOODED = 0.5
+
+#: Relative range difference within which a cell agrees with the static-scene model.
+SCENE_AGREEMENT = 0.05
+#: ... or within this many of the cell's range errors (from its flow's error), if larger.
+AGREEMENT_SIGMAS = 2.0
+
+
+class _Measured(NamedTuple):
+    """A frame pair between :meth:`MotionDetector._measure` and ``_decide``."""
+
+    flow: NDArray[np.float32]
+    cell_flow: NDArray[np.float64]
+    res: ConstraintResult
+    likelihood: NDArray[np.float64]
+    valid: NDArray[np.bool_]
+    rays1: NDArray[np.float64]
+    t0: NDArray[np.float64]
+    t1: NDArray[np.float64]
+    gray: NDArray[np.uint8] | None
+    curr: NDArray[np.uint8] | None
+    sigma: NDArray[np.float64] | None
+    static_flow: NDArray[np.float32] | None
+    road: Road
+    prior_road: Road | None  # the road of the pair's prior, where the growth needs it
+    stream: bool
+    check_curr: bool  # ``curr`` is the stream's newest frame: check its texture for later
+
+
+class MotionDetector:
+    """Stateful detector for one camera: caches the grid rays, the valid mask and the flow object.
+
+    Parameters
+    ----------
+    camera : CameraModel
+        Any model of :mod:`fisheyemotion.calib`; frames must have its size.
+    road : Road or 'auto', optional
+        Road plane in the world frame. Default: the plane ``z = 0`` of the world frame (the
+        scenes of :mod:`fisheyemotion.synth`). ``'auto'``: estimated from the stream
+        (:mod:`fisheyemotion.ground`, the world frame is any): until a plausible plane is found
+        the road is :meth:`Road.unknown` (no height, anti-parallel or ground-contact terms);
+        :attr:`road` then holds the estimate. ``Road.unknown()``: never use a road.
+    params : Params, optional
+    camera_height : float, optional
+        Metres, for ``road='auto'``: the estimate must put the camera this high (+-25 %).
+    roi : ndarray, shape (H, W), optional
+        Pixels to use (non-zero), e.g. without the vehicle's own body; default: every pixel
+        the camera model gives a ray.
+    """
+
+    def __init__(self, camera: CameraModel, road: Road | str | None = None,
+                 params: Params | None = None, *, roi: NDArray | None = None,
+                 camera_height: float | None = None) -> None:
+        if not isinstance(camera, CameraModel):
+            raise ValueError("camera: expected a fisheyemotion.calib camera model, "
+                             f"got {type(camera).__name__}")
+        self.camera = camera
+        self.camera_height = camera_height
+        self.ground: GroundEstimator | None = None
+        if isinstance(road, str):
+            if road != "auto":
+                raise ValueError(f"road: expected a fisheyemotion.Road, None or 'auto', got {road!r}")
+            self.ground = GroundEstimator(camera_height=camera_height)
+            road = Road.unknown()
+        self.road = Road() if road is None else road
+        self.params = Params() if params is None else params
+        if not isinstance(self.road, Road):
+            raise ValueError(f"road: expected a fisheyemotion.Road, got {type(self.road).__name__}")
+        if not isinstance(self.params, Params):
+            raise ValueError(f"params: expected a fisheyemotion.Params, got {type(self.params).__name__}")
+        g = self.params.grid
+        if g > min(camera.width, camera.height):
+            raise ValueError(f"params.grid: {g} is larger than the {camera.width}x{camera.height} image")
+        self.size = (camera.width, camera.height)
+        _warmup.start()  # a cold numba cache: the camera-independent kernels on a second core
+        self._centres = grid_centres(camera.width, camera.height, g)
+        self._rays0, valid0 = camera.unproject(self._centres)
+        pixel_valid = camera.valid_pixel_mask()
+        if roi is not None:
+            roi = np.asarray(roi)
+            if roi.shape != pixel_valid.shape:
+                raise ValueError(f"roi: expected shape {pixel_valid.shape} (the camera's), got {roi.shape}")
+            pixel_valid &= roi != 0
+        # A cell is used only if all of its pixels have rays.
+        self._cell_valid = valid0 & (grid_average(pixel_valid.astype(np.float32), g) > 1 - 1e-6)
+        self._pixel_valid = pixel_valid
+        # Every result is 0 outside the valid pixels: bit masks for the masks (uint8) and for
+        # the maps (float32, through an int32 view: NaN or not, a value ANDed with 0 is +0.0).
+        self._inside_u8 = np.where(pixel_valid, 255, 0).astype(np.uint8)
+        self._inside_bits = np.where(pixel_valid, -1, 0).astype(np.int32)
+        self._flow = FlowEstimator(self.params)
+        self._prior = (EgoFlowPrior(camera, distance=self.params.prior_distance)
+                       if self.params.flow_prior != "none" or self.params.photometric_check
+                       else None)
+        self.scene = (StaticScene(camera, memory=self.params.scene_memory)
+                      if self.params.scene_prior and self.params.flow_prior != "none" else None)
+        self._road_warned = False
+        self._tracker: PoseTracker | None = None
+        self._refiner: PoseRefiner | None = None
+        self._last_mask: NDArray[np.bool_] | None = None
+        self.last_pose: NDArray[np.float64] | None = None
+        self._pixel_angle: NDArray[np.float64] | None = None
+        self._view: NDArray[np.bool_] | None = None
+        self._cell_samples: NDArray[np.intp] | None = None
+        self._static_flow: tuple[bytes, NDArray[np.float32]] | None = None
+        self._temporal: tuple[NDArray, NDArray] | None = None
+        self._history: deque[tuple[NDArray[np.uint8], NDArray[np.float64]]] = deque(
+            maxlen=self.params.frame_gap)
+        self._ranges = RangeMemory(self.params.frame_gap + 1)
+        # The texture check's cells of the last frames (gray image, cells): a stream's frame is
+        # checked when it is the current frame, in the decision, and read when it is the
+        # previous one (MotionDetector.stream decides beside the next pair's flow).
+        self._textures: deque[tuple[NDArray[np.uint8], NDArray[np.bool_]]] = deque(
+            maxlen=self.params.frame_gap + 1)
+
+    def detect(self, prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray,
+               pose1: NDArray) -> Detection:
+        """Detect moving objects between two frames.
+
+        Parameters
+        ----------
+        prev, curr : ndarray of uint8, shape (H, W) or (H, W, 3)
+            Gray or BGR frames of the camera's size.
+        pose0, pose1 : ndarray, shape (4, 4)
+            ``world_from_cam`` at ``prev`` and at ``curr``.
+        """
+        g0 = to_gray(prev, "prev", size=self.size)
+        g1 = to_gray(curr, "curr", size=self.size)
+        t0, t1 = check_rigid(pose0, "pose0"), check_rigid(pose1, "pose1")
+        return self._detect_gray(g0, g1, t0, t1)
+
+    def apply(self, frame: NDArray[np.uint8], pose: NDArray | None = None) -> Detection | None:
+        """Streaming: detect between the frame ``params.frame_gap`` calls ago and this one.
+
+        Returns None until that many frames have been seen. Only the last ``frame_gap`` frames
+        and poses are kept. ``pose=None``: the pose is estimated from the images
+        (:mod:`fisheyemotion.egomotion`; the world is the first camera's frame). With
+        ``road='auto'`` and ``camera_height`` each step's length comes from the road in metres
+        and the road is estimated as with given poses; otherwise one unit of translation per
+        frame, the scale unknown, and the road terms off (``Road.unknown()``, said once as a
+        warning). :attr:`last_pose` is the pose used.
+        """
+        pair = self._take(frame, pose)
+        if pair is None:
+            return None
+        result = self._detect_gray(*pair, stream=True)
+        self._last_mask = result.cell_mask > 0
+        return result
+
+    def stream(self, items: Iterable[tuple[NDArray[np.uint8], NDArray | None]]
+               ) -> Iterator[Detection | None]:
+        """:meth:`apply` over ``(frame, pose)`` items: one result per item, in order, the same
+        results as ``apply`` gives, on two cores.
+
+        While one frame pair's result is decided (the photometric check, the transfer to the
+        current frame, the temporal filter, the segmentation, the texture check of its current
+        frame for the pair that begins with it) in a second thread, the next
+        pair's flow is computed: it needs only the static-scene model, which the pair updated
+        before its decision. Both threads spend most of their time in OpenCV and in numba
+        kernels, which release the GIL. Streams whose next pose depends on the last mask
+        (``pose=None``, or ``params.pose_refinement`` not ``off``) run one frame after the
+        other, as ``apply``. After each result is yielded, :attr:`last_pose` is its pose. A
+        refused frame or pose raises ``ValueError`` after the results of the frames before it;
+        a consumer that leaves early has had one frame more taken in than it was given results
+        for: that frame is detected on leaving, unseen, so the detector goes on as ``apply``
+        would after the same frames.
+
+        >>> for k, result in enumerate(detector.stream(zip(frames, poses))):
+        ...     if result is not None:  # None while the frame gap fills
+        ...         cv2.imwrite(f"mask_{k:06d}.png", result.mask)
+        """
+        pending: tuple[Future, NDArray] | None = None  # the decision under way, its pose
+        taken = None  # a pair whose flow is measured, until its own decision is under way
+
+        def record(result: Detection, pose: NDArray) -> Detection:
+            self._last_mask, self.last_pose = result.cell_mask > 0, pose
+            return result
+
+        def flush():  # the decision under way, if any, as the next result
+            nonlocal pending
+            if pending is not None:
+                (future, pose), pending = pending, None
+                yield record(future.result(), pose)
+
+        def measure(flow, backward, g0, g1, t0, t1) -> _Measured:
+            return self._measure(flow, t0, t1, backward, g0, curr=g1, stream=True)
+
+        with ThreadPoolExecutor(max_workers=1, thread_name_prefix="fisheyemotion-decide") as pool:
+            try:
+                items = iter(items)
+                while True:
+                    try:
+                        frame, pose = _pair_item(next(items))
+                        if (pose is None or self._tracker is not None
+                                or self.params.pose_refinement != "off"):
+                            yield from flush()  # this pose needs the last mask
+                        pair = self._take(frame, pose)
+                    except StopIteration:
+                        break
+                    except Exception:  # a refused frame or pose: the results before it first
+                        yield from flush()
+                        raise
+                    world = self.last_pose
+                    if pair is not None:
+                        taken = (*self._pair_flow(*pair), *pair), world  # beside the decision
+                    yield from flush()
+                    self.last_pose = world
+                    if pair is None:  # the frame gap is filling
+                        yield None
+                        continue
+                    pending = (pool.submit(self._decide, measure(*taken[0])), world)
+                    taken = None
+                yield from flush()
+            finally:
+                # Left early (or failing): the frames taken in still update the detector as
+                # apply() would, their results unseen.
+                with contextlib.suppress(Exception):
+                    if pending is not None:
+                        record(pending[0].result(), pending[1])
+                    if taken is not None:
+                        record(self._decide(measure(*taken[0])), taken[1])
+
+    def _take(self, frame: NDArray[np.uint8], pose: NDArray | None
+              ) -> tuple[NDArray[np.uint8], NDArray[np.uint8], NDArray, NDArray] | None:
+        """:meth:`apply`'s bookkeeping of a new frame: its gray image, its pose (checked, or
+        estimated, or refined and anchored: :attr:`last_pose`), the road's observation and the
+        frame history. Returns the pair to detect, ``(prev, curr, pose0, pose1)``, or None
+        while the frame gap fills."""
+        gray = to_gray(frame, "frame", size=self.size)
+        anchor = None  # world_from_chain of refined poses: one for both poses of a pair
+        if pose is None:
+            t = self._estimated_pose(gray)
+        else:
+            if self._tracker is not None:
+                raise ValueError("pose: this stream estimates its poses (it was started "
+                                 "without them); reset() before giving poses")
+            t = check_rigid(pose, "pose")
+            if self.params.pose_refinement != "off":
+                if self._refiner is None:
+                    self._refiner = PoseRefiner(self.camera, mode=self.params.pose_refinement,
+                                                tolerance=self.params.refine_tolerance,
+                                                mask=self._pixel_valid,
+                                                camera_height=self.camera_height)
+                # The road as given, not as estimated from the refined poses themselves.
+                t = self._refiner.step(gray, t, self._last_mask,
+                                       road=self.road if self.ground is None else None)
+                anchor = self._refiner.anchor
+        world = t if anchor is None else anchor @ t
+        self.last_pose = world
+        self._observe_ground(gray, world)
+        full = len(self._history) == self._history.maxlen
+        prev, prev_pose = self._history[0] if full else (None, None)
+        self._history.append((gray, t))
+        if prev is None:
+            return None
+        return prev, gray, prev_pose if anchor is None else anchor @ prev_pose, world
+
+    def _estimated_pose(self, gray: NDArray[np.uint8]) -> NDArray[np.float64]:
+        if self._tracker is None:
+            if self._history:
+                raise ValueError("pose: this stream was given poses; reset() before leaving "
+                                 "them out")
+            self._tracker = PoseTracker(self.camera, mask=self._pixel_valid,
+                                        camera_height=self.camera_height)
+            if self.camera_height is not None and self.ground is not None:
+                pass  # metric steps from the road: the road is estimated in the same world
+            elif self.road.known or self.ground is not None:
+                warnings.warn("pose: estimating poses from the images, whose scale is unknown "
+                              "without camera_height: the road terms are off (Road.unknown())",
+                              stacklevel=3)
+                self.road, self.ground = Road.unknown(), None
+        return self._tracker(gray, self._last_mask)
+
+    def reset(self) -> None:
+        """Forget the stream's previous frames, its temporal state, its scene model and its
+        estimated poses."""
+        self._history.clear()
+        self._textures.clear()
+        self._ranges.clear()
+        self._temporal = None
+        self._tracker, self._last_mask, self.last_pose = None, None, None
+        self._refiner = None
+        if self.scene is not None:
+            self.scene.clear()
+
+    def detect_flow(self, flow: NDArray, pose0: NDArray, pose1: NDArray, *,
+                    backward: NDArray | None = None, prev: NDArray | None = None,
+                    curr: NDArray | None = None, stream: bool = False) -> Detection:
+        """Detect from a dense flow ``(H, W, 2)`` computed elsewhere (``u' = u + flow``).
+
+        ``backward`` (the flow from the current to the previous frame) enables the
+        forward-backward check when ``params.fb_check`` is set; ``prev`` (the previous frame)
+        enables the texture check when ``params.min_texture > 0``; ``prev`` and ``curr`` (the
+        current frame) enable the photometric check when ``params.photometric_check`` is set;
+        ``stream=True`` treats the call as the next frame of a stream (temporal filtering, as
+        :meth:`apply`).
+        """
+        shape = (self.size[1], self.size[0], 2)
+        arrays = {"flow": flow, "backward": backward}
+        for name, a in arrays.items():
+            if a is None:
+                continue
+            a = np.asarray(a)
+            if a.shape != shape or a.dtype.kind != "f":
+                raise ValueError(f"{name}: expected a float array of shape {shape}, got {a.dtype} {a.shape}")
+        t0, t1 = check_rigid(pose0, "pose0"), check_rigid(pose1, "pose1")
+        gray = None if prev is None else to_gray(prev, "prev", size=self.size)
+        gray1 = None if curr is None else to_gray(curr, "curr", size=self.size)
+        return self._from_flow(np.asarray(flow, np.float32), t0, t1,
+                               None if backward is None else np.asarray(backward, np.float32),
+                               gray, curr=gray1, stream=stream)
+
+    def flow(self, prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray,
+             pose1: NDArray, *, backward: bool = False):
+        """The dense flow ``detect`` uses, from gray frames and checked poses, with the ego prior
+        as set in ``params.flow_prior``; with ``backward=True`` also the flow from ``curr`` to
+        ``prev``."""
+        self._observe_ground(curr, pose1)
+        forward = self._one_flow(prev, curr, pose0, pose1)
+        if not backward:
+            return forward
+        return forward, self._one_flow(curr, prev, pose1, pose0)
+
+    def _one_flow(self, a, b, pose_a, pose_b) -> NDArray[np.float32]:
+        mode = self.params.flow_prior
+        if mode == "none":
+            return self._flow(a, b)
+        prior, seen = self._static_prior(pose_a, pose_b)
+        if self.params.photometric_check:  # for the check of this pair, once
+            self._static_flow = (pose_a.tobytes() + pose_b.tobytes(), prior)
+        if mode == "ego":
+            return self._flow(a, b, prior)
+        warped = warp_by(b, prior)
+        # Where the static scene leaves the view there is nothing to match: keep `a` there, so
+        # that the residual is 0 instead of garbage that the flow's smoothing spreads around.
+        np.copyto(warped, a, where=~seen)
+        # a(u) ~ warped(u + r) = b(u + r + prior(u + r)) ~ b(u + prior(u) + r)
+        residual = self._flow(a, warped)
+        residual += prior
+        return residual
+
+    def _pair_flow(self, g0, g1, t0, t1) -> tuple[NDArray[np.float32], NDArray | None]:
+        """The pair's flow, and the backward one where ``params.fb_check`` asks for it."""
+        if self.params.fb_check:
+            return self.flow(g0, g1, t0, t1, backward=True)
+        return self.flow(g0, g1, t0, t1), None
+
+    def _detect_gray(self, g0, g1, t0, t1, *, stream: bool = False) -> Detection:
+        flow, backward = self._pair_flow(g0, g1, t0, t1)
+        return self._from_flow(flow, t0, t1, backward, g0, curr=g1, stream=stream)
+
+    def _resolvable_cells(self, t0: NDArray, t1: NDArray, *, parallax: bool) -> NDArray[np.bool_]:
+        """Cells the static-scene prediction says can be scored: its point is seen in the current
+        frame (``visibility_check``) and moved by at least ``min_parallax`` pixels through the
+        camera's translation (``parallax``: the displacement beyond what the rotation alone
+        gives a point at infinity)."""
+        p = self.params
+        targets, ok = static_scene_targets(self.camera, self._rays0, t0, t1, self.road,
+                                           p.prior_distance)
+        keep = ok
+        if p.visibility_check:
+            if self._view is None:  # the usable pixels, shrunk by one cell
+                g = p.grid
+                self._view = cv2.erode(self._pixel_valid.astype(np.uint8),
+                                       np.ones((2 * g + 1,) * 2, np.uint8),
+                                       borderType=cv2.BORDER_CONSTANT, borderValue=0) > 0
+            keep = lands_on(targets, ok, self._view, *self.size)
+        if parallax and p.min_parallax > 0:
+            at_infinity, _ = self.camera.project(self._rays0 @ (t0[:3, :3].T @ t1[:3, :3]))
+            with np.errstate(invalid="ignore"):
+                keep &= np.linalg.norm(targets - at_infinity, axis=-1) >= p.min_parallax
+        return keep
+
+    def _textured_cells(self, gray: NDArray[np.uint8], *, keep: bool = False
+                        ) -> NDArray[np.bool_]:
+        """Cells whose mean Sobel gradient magnitude reaches ``params.min_texture``; with
+        ``keep``, kept for when the frame begins a pair (a stream's frame is checked once: as
+        the current frame of the pair it ends, or else as the previous one)."""
+        for i, (seen, cells) in enumerate(tuple(self._textures)):
+            if seen is gray:  # a frame is a stream's previous frame once
+                del self._textures[i]
+                return cells
+        gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3, scale=0.125)
+        gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3, scale=0.125)
+        cells = grid_average(cv2.magnitude(gx, gy), self.params.grid) >= self.params.min_texture
+        if keep:
+            self._textures.append((gray, cells))
+        return cells
+
+    def _consistent_cells(self, flow, cell_flow, backward) -> NDArray[np.bool_]:
+        """Cells whose mean forward-backward error is within tolerance (``cell_flow``: the
+        cells' mean flow, already computed by the caller)."""
+        back_at = warp_by(backward, flow)
+        error = np.linalg.norm(flow + back_at, axis=-1)
+        p = self.params
+        cell_error = grid_average(error, p.grid)
+        cell_mag = np.linalg.norm(cell_flow, axis=-1)
+        return cell_error <= p.fb_tolerance + p.fb_relative * cell_mag
+
+    def _from_flow(self, flow, t0, t1, backward=None, gray=None, *, curr=None,
+                   stream=False) -> Detection:
+        return self._decide(self._measure(flow, t0, t1, backward, gray, curr=curr,
+                                          stream=stream))
+
+    def _measure(self, flow, t0, t1, backward=None, gray=None, *, curr=None,
+                 stream=False) -> _Measured:
+        """A pair's cells scored, up to the static-scene model's update: what the next pair's
+        flow prior needs (:meth:`stream` computes that flow while :meth:`_decide` runs)."""
+        p = self.params
+        cell_flow = grid_average(flow, p.grid)
+        rays1, valid1 = self.camera.unproject(self._centres + cell_flow)
+        res = constraints(self._rays0, rays1, t0, t1, road=self.road, params=p)
+        valid = res.valid & valid1 & self._cell_valid
+        if p.visibility_check or (p.min_parallax > 0 and not res.static_camera):
+            valid &= self._resolvable_cells(t0, t1, parallax=not res.static_camera)
+        if p.fb_check and backward is not None:
+            valid &= self._consistent_cells(flow, cell_flow, backward)
+        if p.min_texture > 0 and gray is not None:
+            valid &= self._textured_cells(gray)
+        static_flow = None  # before the scene model learns from this pair (the prior uses it)
+        if p.photometric_check and gray is not None and curr is not None:
+            static_flow = self._static_flow_for(t0, t1)
+        likelihood = res.likelihood
+        sigma = None
+        if (p.significance > 0 or (p.ground_contact and self.road.known)) \
+                and not res.static_camera:
+            sigma = cell_sigma(flow, p.grid, self._cell_pixel_angle(), floor=p.flow_sigma,
+                               mean=cell_flow)
+        if p.significance > 0 and not res.static_camera:
+            likelihood = self._with_significance(res, sigma, likelihood)
+        keep_scene = stream and self.scene is not None
+        contact = p.ground_contact and self.road.known
+        three = (p.range_consistency > 0 and stream and gray is not None and curr is not None
+                 and sigma is not None)
+        if (keep_scene or contact or three) and not res.static_camera:
+            # One triangulation for all: every range counts for the contact test, however
+            # little parallax it has; the scene model and the three views use well-conditioned
+            # ones only.
+            ranges, _, parallax = triangulate_range(self._rays0, rays1, t0, t1,
+                                                    far=p.prior_distance, with_parallax=True)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                range_error = sigma / parallax if sigma is not None else None  # d(lambda)/lambda
+                conditioned = parallax >= np.sin(TRIANGULATION_PARALLAX)
+            if contact:
+                likelihood, doubted = self._explain_standing(res, likelihood, valid, ranges,
+                                                             range_error, sigma, t0)
+            if three:
+                likelihood = self._three_views(likelihood, valid & conditioned, ranges,
+                                               range_error, cell_flow, gray, curr, t0, t1)
+            if keep_scene:
+                with np.errstate(invalid="ignore"):
+                    static = valid & (likelihood < p.threshold)
+                    if contact:  # static by its arc, but its range or the model's is wrong
+                        static &= ~doubted
+                    self.scene.add(self._rays0, np.where(conditioned, ranges, np.nan), t0,
+                                   static)
+        return _Measured(flow, cell_flow, res, likelihood, valid, rays1, t0, t1, gray, curr,
+                         sigma, static_flow, self.road,
+                         self._prior_road(t0, t1) if p.grow > 0 else None, stream,
+                         p.min_texture > 0 and curr is not None and bool(self._history)
+                         and self._history[-1][0] is curr)
+
+    def _decide(self, m: _Measured) -> Detection:
+        """A measured pair's result: the photometric check's seeds, the growth and the
+        result on the current frame. Reads nothing of the detector that the next pair's flow
+        changes (the road is the one the pair was measured with)."""
+        p = self.params
+        flow, cell_flow, res, likelihood, valid = m.flow, m.cell_flow, m.res, m.likelihood, m.valid
+        t0, t1, gray, curr, static_flow = m.t0, m.t1, m.gray, m.curr, m.static_flow
+        seeds = None
+        if static_flow is not None:
+            # A region is reported only if one of its cells (above the threshold: only they
+            # are tested) is not explained by the static scene.
+            with np.errstate(invalid="ignore"):
+                above = valid & (likelihood > p.threshold)
+            def along(cells):  # the epipolar curves at the cells' predicted points
+                r, c = np.nonzero(cells)
+                at = self._centres[r, c] + self._at_cell_centres(static_flow)[r, c]
+                return epipolar_directions(self.camera, at, t0, t1)
+
+            measured = cell_residual(gray, curr, flow, p.grid, above)  # shared by both tests
+            seeds = above & ~static_explained(gray, curr, flow, static_flow, p.grid,
+                                              p.photometric_margin, cells=above,
+                                              tolerance=p.photometric_tolerance,
+                                              directions=along, measured=measured)
+            if p.photometric_arc and seeds.any() and not res.static_camera:
+                seeds &= self._supported_off_arc(seeds, flow, cell_flow, m.rays1, t0, t1, gray,
+                                                 curr, m.sigma, measured, m.road)
+        if p.grow > 0 and not res.static_camera:
+            likelihood = self._grown(likelihood, valid, cell_flow, t0, t1, m.prior_road)
+        if m.check_curr:  # for the stream's pair whose previous frame it will be
+            self._textured_cells(curr, keep=True)
+        self._check_road(t0)
+        return self._assemble(flow, cell_flow, res, likelihood, valid, stream=m.stream,
+                              seeds=seeds, curr=curr, static_flow=static_flow)
+
+    def _cell_pixel_angle(self) -> NDArray[np.float64]:
+        """Radians per pixel at each cell centre (:func:`~fisheyemotion.significance.pixel_angle`),
+        computed on first use."""
+        if self._pixel_angle is None:
+            self._pixel_angle = pixel_angle(self.camera, self._centres)
+        return self._pixel_angle
+
+    def _supported_off_arc(self, seeds, flow, cell_flow, rays1, t0, t1, gray, curr, sigma,
+                           measured, road: Road) -> NDArray[np.bool_]:
+        """The seed cells whose evidence the images support (:mod:`fisheyemotion.photometric`):
+        their deviation from the epipolar arc (against the static correspondences within
+        ``photometric_search`` pixels along it of the nearest one), or else their likelihood at
+        the nearest (on the arc: the height and anti-parallel deviations, the height's
+        significance)."""
+        p = self.params
+        r, c = np.nonzero(seeds)
+        rays0 = self._rays0[r, c]
+        arc = nearest_static_ray(rays0, rays1[r, c], t0, t1)
+        measured_at = self._centres[r, c] + cell_flow[r, c]
+        at, _ = self.camera.project(arc)
+        off_arc = off_arc_supported(gray, curr, flow, p.grid, p.photometric_margin, seeds,
+                                    at - measured_at, measured)
+        on_arc = constraints(rays0, arc, t0, t1, road=road, params=p)
+        likelihood = on_arc.likelihood
+        if p.significance > 0 and sigma is not None:
+            likelihood = self._with_significance(on_arc, sigma[r, c], likelihood)
+        with np.errstate(invalid="ignore"):
+            scored = likelihood > p.threshold
+        # The search can only take support away: it runs where the nearest point gave it and
+        # the arc's deviations do not make the cell a seed anyway.
+        search = off_arc[r, c] & ~scored
+        if p.photometric_search > 0 and search.any():
+            reach = np.arange(-p.photometric_search, p.photometric_search + 1e-9, SEARCH_STEP)
+            angle = self._cell_pixel_angle()[r[search], c[search]]
+            candidates = arc_candidates(rays0[search], arc[search], t0, t1, reach[:, None] * angle)
+            at, _ = self.camera.project(candidates)
+            cells = np.zeros_like(seeds)
+            cells[r[search], c[search]] = True
+            off_arc &= ~cells | off_arc_supported(gray, curr, flow, p.grid, p.photometric_margin,
+                                                  cells, at - measured_at[search], measured)
+        out = off_arc.copy()
+        out[r, c] |= scored
+        return out
+
+    def _static_prior(self, pose_a: NDArray, pose_b: NDArray
+                      ) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
+        """The ego prior's flow from ``pose_a`` to ``pose_b`` with the static-scene model as it
+        is now, and where it is seen."""
+        return self._prior(pose_a, pose_b, self._prior_road(pose_a, pose_b),
+                           view=self._pixel_valid, scene=self.scene)
+
+    def _static_flow_for(self, t0: NDArray, t1: NDArray) -> NDArray[np.float32]:
+        """The static scene's flow for this pair: the prior the flow was just warped by (taken
+        once: the scene model learns from the pair after the check), or computed now (a flow
+        from elsewhere)."""
+        cached, self._static_flow = self._static_flow, None
+        if cached is not None and cached[0] == t0.tobytes() + t1.tobytes():
+            return cached[1]
+        return self._static_prior(t0, t1)[0]
+
+    def _grown(self, likelihood, valid, cell_flow, t0, t1, prior_road: Road) -> NDArray:
+        """The likelihood with the cells that regions grow into (:mod:`fisheyemotion.grow`)
+        raised to just above the threshold (``prior_road``: the road the pair's prior used)."""
+        p = self.params
+        with np.errstate(invalid="ignore"):
+            moving = valid & (likelihood > p.threshold)
+        if not moving.any():
+            return likelihood
+        ranges = None
+        if self.scene is not None and len(self.scene):
+            ranges = self._scene_ranges_at_cells(t0)
+        targets, ok = static_scene_targets(self.camera, self._rays0, t0, t1, prior_road,
+                                           p.prior_distance, ranges)
+        residual = np.where(ok[..., None], self._centres + cell_flow - targets, np.nan)
+        grown = grow_regions(moving, residual, valid, steps=p.grow)
+        raised = np.nextafter(p.threshold, np.inf)
+        return np.where(grown & ~moving, np.fmax(likelihood, raised), likelihood)
+
+    def _check_road(self, pose: NDArray) -> None:
+        """Warn (once per detector) when a given road is implausible for the camera."""
+        if self._road_warned or not self.road.known or self.ground is not None:
+            return
+        height = float(self.road.height(pose[:3, 3]))
+        if height <= 0.05:
+            self._road_warned = True
+            warnings.warn(f"road: the camera is {height:.2f} m above the given road (on or "
+                          "under it); is the road's normal pointing up in this world frame? "
+                          "road='auto' estimates it", stacklevel=3)
+
+    def _observe_ground(self, gray: NDArray[np.uint8], pose: NDArray) -> None:
+        """``road='auto'``: the estimator sees every frame (it tracks consecutive frames) and
+        refits now and then; a plausible fit becomes the road."""
+        if self.ground is None:
+            return
+        road = self.ground.observe(self.camera, gray, pose, mask=self._pixel_valid)
+        if road is not None:
+            self.road = road
+
+    def _prior_road(self, pose: NDArray, pose_b: NDArray) -> Road:
+        """The road the ego prior warps by: the known one or, while ``road='auto'`` has not
+        found one yet, a provisional plane (:func:`fisheyemotion.ground.provisional_road`:
+        ``camera_height`` below the camera, its normal the camera's image-down axis with the
+        direction of travel projected out). The constraints never see it."""
+        if self.road.known or self.ground is None:
+            return self.road
+        return provisional_road(pose, pose_b, self.ground.camera_height)
+
+    def _with_significance(self, res: ConstraintResult, sigma, likelihood) -> NDArray:
+        """The likelihood raised where the height or depth deviation is significant: at
+        ``params.significance`` flow-error sigmas a cell reaches the threshold
+        (:mod:`fisheyemotion.significance`; ``sigma``: the cells' angular flow error)."""
+        p = self.params
+        with np.errstate(invalid="ignore", divide="ignore"):
+            z = np.fmax(res.height, res.depth) / sigma
+        return np.fmax(likelihood, np.where(np.isfinite(z), p.threshold * z / p.significance,
+                                            np.nan))
+
+    def _explain_standing(self, res: ConstraintResult, likelihood, valid, ranges, range_error,
+                          sigma, pose0) -> tuple[NDArray, NDArray[np.bool_]]:
+        """The likelihood with the anti-parallel deviation removed from regions that stand on
+        the road (:mod:`fisheyemotion.ground_contact`) and agree with the scene model or,
+        with ``params.contact_arc``, lie on their epipolar arc (``range_error``: each cell's
+        relative range error from its flow's; ``sigma``: its flow's angular error); and the
+        cells explained by their arc alone, whose range disagrees with the model's."""
+        p = self.params
+        doubted = np.zeros(likelihood.shape, bool)
+        antiparallel = np.where(np.isnan(res.antiparallel), 0.0, res.antiparallel)
+        weighted = p.weights[3] * antiparallel / sum(p.weights)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            moving = valid & (likelihood > p.threshold)
+            share = np.where(moving, weighted / likelihood, 0.0)
+        if not moving.any():
+            return likelihood, doubted
+        stands = standing_regions(moving, share, ranges, self._rays0, pose0, self.camera,
+                                  self.road, p.grid, ratio=p.contact_ratio)
+        if self.scene is not None and len(self.scene) and stands.any():
+            # A static point stays where it was: a cell whose range disagrees with what the
+            # scene model measured along its ray before, by more than the flow's error explains,
+            # has moved (e.g. a pedestrian stepping out beside a parked car, which stands on the
+            # road too).
+            before = self._scene_ranges_at_cells(pose0)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                tolerance = np.fmax(SCENE_AGREEMENT, AGREEMENT_SIGMAS * range_error)
+                moved = np.abs(ranges / before - 1) > tolerance
+                if p.contact_arc > 0:
+                    # ... unless it is seen where a static point would be, on its epipolar
+                    # arc: a pedestrian stepping out moves off it, a parked car does not.
+                    doubted = stands & moved & (res.epipolar < p.contact_arc * sigma)
+                    moved &= ~doubted
+            stands &= ~moved
+        return np.where(stands, likelihood - weighted, likelihood), doubted
+
+    def _three_views(self, likelihood, usable, ranges, range_error, cell_flow, prev, curr,
+                     t0, t1) -> NDArray[np.float64]:
+        """The likelihood raised where a cell's range disagrees with the static point the
+        previous pair landed in it, by ``params.range_consistency`` flow-error sigmas or more
+        (:mod:`fisheyemotion.range_consistency`); and this pair's static cells remembered for
+        the pair whose previous frame ``curr`` will be."""
+        p = self.params
+        usable = usable & np.isfinite(ranges) & (ranges < p.prior_distance)
+        z = self._ranges.deviation(prev, ranges, range_error, t0[:3, 3])
+        if z is not None:
+            with np.errstate(invalid="ignore"):
+                raised = np.where(usable & (z > p.range_consistency),
+                                  p.threshold * z / p.range_consistency, np.nan)
+            likelihood = np.fmax(likelihood, raised)
+        with np.errstate(invalid="ignore"):
+            static = usable & (likelihood < p.threshold)
+        self._ranges.remember(curr, world_points(self._rays0, ranges, t0), range_error,
+                              self._centres + cell_flow, static, p.grid, t1[:3, 3])
+        return likelihood
+
+    def _at_cell_centres(self, image: NDArray) -> NDArray:
+        """A full-resolution map ``(H, W, ...)`` read at each cell's centre pixel (exact for odd
+        grids): ``(rows, cols, ...)``, a view."""
+        g = self.params.grid
+        centre = (g - 1) // 2
+        rows, cols = self._centres.shape[:2]
+        return image[centre:rows * g:g, centre:cols * g:g]
+
+    def _scene_ranges_at_cells(self, pose0: NDArray) -> NDArray[np.float64]:
+        """The scene model's ranges at the cell centres, read off the prior's coarser samples
+        (computed once per frame pair: the prior asked for the same)."""
+        step = self._prior.step
+        w, h = self.size
+        coarse = self.scene.ranges(pose0, step, (-(-h // step), -(-w // step)))
+        if self._cell_samples is None:  # each cell's sample: fixed by the camera and the grid
+            c = (self._centres[..., 0] // step).astype(np.intp)
+            r = (self._centres[..., 1] // step).astype(np.intp)
+            self._cell_samples = r * coarse.shape[1] + c
+        return coarse.ravel()[self._cell_samples]
+
+    def _temporal_filter(self, cell_likelihood, carrier, source):
+        """Accumulated likelihood and the age (consecutive moving detections) of every cell:
+        ``L = (1 - decay) L_now + decay L_before``, the previous detection's map read where each
+        cell came from (consecutive detections are one frame apart, so regions moved by about
+        ``flow / frame_gap``; ``carrier[source]`` is each cell's flow)."""
+        from ._grid_kernels import accumulate  # numba on first use: a light import
+
+        p = self.params
+        if self._temporal is None:
+            acc = np.nan_to_num(cell_likelihood, nan=0.0)
+            age = np.where(acc > p.threshold, 1, 0)
+        else:
+            acc_before, age_before = self._temporal
+            acc, age = np.empty(cell_likelihood.shape), np.empty(cell_likelihood.shape, np.int64)
+            accumulate(source, np.ascontiguousarray(cell_likelihood, np.float64), carrier,
+                       acc_before, age_before, float(p.temporal_decay), float(p.threshold),
+                       int(p.frame_gap), int(p.grid), acc, age)
+        self._temporal = (acc, age)
+        return np.where(np.isnan(cell_likelihood), np.nan, acc), age
+
+    def _assemble(self, flow, cell_flow, res: ConstraintResult, likelihood, valid, *,
+                  stream: bool = False, seeds: NDArray[np.bool_] | None = None,
+                  curr: NDArray[np.uint8] | None = None,
+                  static_flow: NDArray[np.float32] | None = None) -> Detection:
+        p, (w, h) = self.params, self.size
+        measured = np.where(valid, likelihood, np.nan)
+        # The measurement lives on the previous frame's cells; the result belongs to the current
+        # frame: every cell moves by the mean flow it was scored with (the most likely one wins
+        # where several land), median-filtered over 3x3 cells so that a lone wrong flow does not
+        # throw its cell across the image.
+        carrier = cv2.medianBlur(np.ascontiguousarray(cell_flow, dtype=np.float32), 3)
+        source = grid_transfer(carrier, measured, p.grid)
+        valid_now = grid_gather(valid, source, False)
+
+        def to_image(cells: NDArray[np.float64]) -> NDArray[np.float32]:
+            full = grid_upsample(np.where(valid_now, cells, 0.0).astype(np.float32), p.grid, w, h)
+            bits = full.view(np.int32)
+            cv2.bitwise_and(bits, self._inside_bits, dst=bits)
+            return full
+
+        def now(cells: NDArray[np.float64]) -> NDArray[np.float64]:
+            return grid_gather(cells, source)
+
+        cell_likelihood = now(measured)
+        maps = LazyMaps(CONSTRAINT_NAMES, lambda name: to_image(now(getattr(res, name))))
+        age = None
+        if stream and (p.temporal_decay > 0 or p.persistence > 1):
+            cell_likelihood, age = self._temporal_filter(cell_likelihood, carrier, source)
+        likelihood = to_image(np.where(np.isnan(cell_likelihood), 0.0, cell_likelihood))
+        cell_mask, regions, labels = segment_cells(
+            cell_likelihood, threshold=p.threshold, grid=p.grid, min_area=p.min_area, age=age,
+            persistence=p.persistence, seed_threshold=p.seed_threshold,
+            extend_threshold=p.extend_threshold,
+            seeds=None if seeds is None else grid_gather(seeds, source, False), with_labels=True)
+        cells_now = cv2.bitwise_and(grid_upsample(cell_mask.astype(np.uint8) * 255, p.grid, w, h),
+                                    self._inside_u8)
+        mask = cells_now
+        if p.extent_reach > 0 and curr is not None and regions:
+            # The mask of the frame the user passed last, grown on that frame's image.
+            residual = None
+            if static_flow is not None:  # the cells' own motion, on the current frame's cells
+                at = self._at_cell_centres(static_flow)
+                residual = now(np.where(valid[..., None], cell_flow - at, np.nan))
+            mask, regions = grow_to_extent(labels, regions, p.grid, curr, likelihood,
+                                           threshold=p.threshold, reach=p.extent_reach,
+                                           static_fraction=p.extent_static,
+                                           residual=residual, inside=self._inside_u8)
+        if not self._road_warned and self.road.known and self.ground is None \
+                and cell_mask[self._cell_valid].mean() > FLOODED:
+            self._road_warned = True
+            warnings.warn(f"detection: more than {FLOODED:.0%} of the image is flagged moving; "
+                          "are the poses world_from_cam and the road right for this world "
+                          "frame? road='auto' estimates the road", stacklevel=3)
+        grid = Grid(p.grid, self._centres, cell_flow, measured, valid)
+        return Detection(likelihood, mask, maps, flow, grid, regions, res.static_camera,
+                         cells_now)
+
+
+def _pair_item(item) -> tuple:
+    """One ``(frame, pose)`` item of :meth:`MotionDetector.stream`, or a ValueError."""
+    if isinstance(item, np.ndarray) or not isinstance(item, tuple | list) or len(item) != 2:
+        raise ValueError("items: expected (frame, pose) pairs (pose None to estimate it), got "
+                         f"{type(item).__name__}" + (f" of length {len(item)}"
+                                                     if isinstance(item, tuple | list) else ""))
+    return item[0], item[1]
+
+
+def _pair_item(item) -> tuple:
+    """One ``(frame, pose)`` item of :meth:`MotionDetector.stream`, or a ValueError."""
+    if isinstance(item, np.ndarray) or not isinstance(item, tuple | list) or len(item) != 2:
+        raise ValueError("items: expected (frame, pose) pairs (pose None to estimate it), got "
+                         f"{type(item).__name__}" + (f" of length {len(item)}"
+                                                     if isinstance(item, tuple | list) else ""))
+    return item[0], item[1]
