@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 
 from .calib.base import CameraModel
 from .calib.transforms import rotate
+from .flow import grid_upsample
 from .road import Road
 from .static_scene import StaticScene
 
@@ -87,10 +88,12 @@ class EgoFlowPrior:
         self._pixels = np.stack(np.meshgrid(u, v), axis=-1)
         self._rays, self._valid = camera.unproject(self._pixels)
 
-    def _upsample(self, coarse: NDArray, interpolation: int) -> NDArray:
+    def _upsample(self, coarse: NDArray) -> NDArray:
+        """The coarse samples interpolated bilinearly to every pixel (edges replicated)."""
         h, w = self.camera.height, self.camera.width
         rows, cols = coarse.shape[:2]
-        full = cv2.resize(coarse, (cols * self.step, rows * self.step), interpolation=interpolation)
+        full = cv2.resize(coarse, (cols * self.step, rows * self.step),
+                          interpolation=cv2.INTER_LINEAR)
         return full[:h, :w]
 
     def __call__(self, pose0: NDArray, pose1: NDArray, road: Road, *,
@@ -124,8 +127,8 @@ class EgoFlowPrior:
             _, (r, c) = ndimage.distance_transform_edt(~ok, return_indices=True)
             flow = flow[r, c]
         seen = lands_on(pixels, ok, view, self.camera.width, self.camera.height)
-        return (self._upsample(flow, cv2.INTER_LINEAR),
-                self._upsample(seen.astype(np.uint8), cv2.INTER_NEAREST) > 0)
+        return (self._upsample(flow),
+                grid_upsample(seen, self.step, self.camera.width, self.camera.height))
 
 
 def lands_on(pixels: NDArray[np.float64], ok: NDArray[np.bool_], view: NDArray[np.bool_] | None,

@@ -6,6 +6,8 @@ import cv2
 import numpy as np
 import pytest
 from fisheyemotion.calib.base import pixel_grid as calib_pixel_grid
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import fisheyemotion as fm
 from fisheyemotion import synth
@@ -94,6 +96,28 @@ def test_grid_helpers_average_and_upsample():
     assert up.shape == (7, 11) and up[6, 10] == cells[1, 2] and up[0, 0] == cells[0, 0]
     centres = grid_centres(11, 7, 3)
     assert centres[0, 0].tolist() == [1.0, 1.0] and centres[1, 2].tolist() == [7.0, 4.0]
+
+
+@settings(max_examples=60, deadline=None)
+@given(rows=st.integers(1, 9), cols=st.integers(1, 9), grid=st.integers(1, 6),
+       extra_h=st.integers(-5, 5), extra_w=st.integers(-5, 5),
+       dtype=st.sampled_from([np.float32, np.uint8, np.float64, np.bool_, np.intp]),
+       channels=st.sampled_from([0, 2, 3]), seed=st.integers(0, 2**16))
+def test_grid_upsample_gives_each_pixel_its_cells_value(rows, cols, grid, extra_h, extra_w,
+                                                        dtype, channels, seed):
+    """Every pixel takes the value of the cell it lies in; the rows and columns beyond the
+    last whole cell take the last cell's, and cells beyond the image are cut (whatever the
+    dtype and channels)."""
+    shape = (rows, cols) + ((channels,) if channels else ())
+    cells = np.random.default_rng(seed).integers(0, 200, shape).astype(dtype)
+    def side(n, extra):  # a partial cell more, or the last cell cut (never a whole cell)
+        return max(n * grid + max(min(extra, grid - 1), 1 - grid), 1)
+    h, w = side(rows, extra_h), side(cols, extra_w)
+    up = grid_upsample(cells, grid, w, h)
+    r = np.minimum(np.arange(h) // grid, rows - 1)
+    c = np.minimum(np.arange(w) // grid, cols - 1)
+    assert up.dtype == cells.dtype
+    np.testing.assert_array_equal(up, cells[r[:, None], c[None, :]])
 
 
 def test_texture_check_drops_textureless_cells(road_frames):
