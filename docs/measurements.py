@@ -10,8 +10,11 @@ estimated in the first camera's frame, what the false regions of the default pip
 far the prior and the flow are off there, why the scene model's ranges are wrong there, how
 far the scene model's ranges are off on the tuning street's brick wall, what the ground-contact
 test's scene-agreement veto and the arc test cost and buy with the exact flow, whether one
-region statistic could drop the false regions, and how far Table 2 moves under negligible, noisy
-and refined poses over several draws, and with the scene model off.
+region statistic could drop the false regions, how far Table 2 moves under negligible, noisy
+and refined poses over several draws, and with the scene model off, and how far a warp prior
+from the true depth, with and without occlusions handled, would go.
+
+    .venv/bin/python docs/measurements.py true_depth_prior_bounds   # one of them, by name
 """
 
 from __future__ import annotations
@@ -501,10 +504,107 @@ def false_region_rules() -> None:
         print(f"  drop {rule}: false-positive frames " + ", ".join(cells))
 
 
+def _true_depth_prior(path, mode: str):
+    """A :class:`~fisheyemotion.MotionDetector` whose warp prior is the static scene's flow
+    from the renderer's true ranges of the pair's previous frame (per pixel, sharp; moving
+    objects read as static at their own range, as any static prior reads them), filled where
+    the point leaves the camera's domain and seen only where it lands on the valid pixels, as
+    :class:`~fisheyemotion.prior.EgoFlowPrior` does. ``mode``: ``"prior"`` that alone;
+    ``"occlusion"`` also with the pixels whose static point is hidden in the current frame
+    behind a nearer static surface (true ranges, 5 %) left out of the warp and their cells
+    (30 % of their pixels) not scored; ``"occlusion only"`` that occlusion with the detector's
+    own prior."""
+    from fisheyemotion.calib.base import pixel_grid
+    from scipy import ndimage
+
+    from fisheyemotion.detector import MotionDetector
+    from fisheyemotion.flow import grid_average
+    from fisheyemotion.prior import lands_on, static_scene_targets
+
+    seq = Sequence(path)
+    renderer = Renderer(seq.camera, load_scenario(seq.path / "scenario.yaml"), supersample=1)
+    index = {pose.tobytes(): k for k, pose in enumerate(seq.poses)}
+    ranges, static_ranges = {}, {}
+
+    def truth(k):
+        if k not in ranges:
+            frame = renderer.render(k)
+            ranges[k] = np.where(np.isfinite(frame.range), frame.range, 1e3).astype(np.float64)
+            static_ranges[k] = np.where(frame.moving > 0, np.inf, frame.range)
+        return ranges[k], static_ranges[k]
+
+    class TrueDepthDetector(MotionDetector):
+        def _static_prior(self, pose_a, pose_b):
+            a, b = index.get(pose_a.tobytes()), index.get(pose_b.tobytes())
+            if a is None or b is None:  # not a pair of the sequence's own poses
+                return super()._static_prior(pose_a, pose_b)
+            cam = self.camera
+            if not hasattr(self, "_pixels"):
+                self._pixels = pixel_grid(cam.width, cam.height).astype(np.float64)
+                self._pixel_rays = cam.unproject(self._pixels)[0]
+                self._cells_before = self._cell_valid.copy()
+            depth = truth(a)[0]
+            targets, ok = static_scene_targets(cam, self._pixel_rays, pose_a, pose_b,
+                                               fm.Road.unknown(), 1e3, depth)
+            flow = np.where(ok[..., None], targets - self._pixels, 0.0).astype(np.float32)
+            if ok.any() and not ok.all():
+                _, (r, c) = ndimage.distance_transform_edt(~ok, return_indices=True)
+                flow = flow[r, c]
+            seen = lands_on(targets, ok, self._pixel_valid, cam.width, cam.height)
+            if mode == "occlusion only":
+                flow, seen_prior = super()._static_prior(pose_a, pose_b)
+            if mode != "prior":
+                points = pose_a[:3, 3] + depth[..., None] * (self._pixel_rays @ pose_a[:3, :3].T)
+                expected = np.linalg.norm(points - pose_b[:3, 3], axis=-1)
+                u = np.clip(np.rint(np.nan_to_num(targets[..., 0])), 0, cam.width - 1)
+                v = np.clip(np.rint(np.nan_to_num(targets[..., 1])), 0, cam.height - 1)
+                there = np.nan_to_num(truth(b)[1][v.astype(int), u.astype(int)], nan=np.inf)
+                hidden = seen & (there < 0.95 * expected)
+                seen = (seen_prior if mode == "occlusion only" else seen) & ~hidden
+                cells = grid_average(hidden.astype(np.float32), self.params.grid) > 0.3
+                self._cell_valid = self._cells_before & ~cells
+            return flow, seen
+
+    return TrueDepthDetector
+
+
+def true_depth_prior_bounds() -> None:
+    """How far a better static prior could go: ``Params()`` with Farneback over every demo
+    sequence, its warp prior replaced by the static scene's flow from the true ranges
+    (:func:`_true_depth_prior`), then also with the occlusions by static surfaces handled, and
+    that occlusion handling with the detector's own prior."""
+    import importlib
+
+    from fisheyemotion.eval.evaluate import evaluate, sequence_paths
+    from fisheyemotion.eval.report import groups_table
+
+    module = importlib.import_module("fisheyemotion.eval.evaluate")
+    original, detector = module.evaluate_sequence, module.MotionDetector
+    columns = ("FP frames", "crossing det.", "preceding det.", "approaching det.", "IoU")
+    try:
+        for mode in (None, "prior", "occlusion", "occlusion only"):
+            def run(path, *args, mode=mode, **kwargs):  # in the pool's forked workers too
+                module.MotionDetector = detector if mode is None else _true_depth_prior(path, mode)
+                return original(path, *args, **kwargs)
+            module.evaluate_sequence = run
+            table = groups_table(evaluate(sequence_paths([SEQUENCES]), fm.Params(), workers=2,
+                                          progress=False, ablation=False)).set_index("scenes")
+            cells = "; ".join(f"{scenes}: " + ", ".join(
+                f"{name} {100 * row[name] if name != 'IoU' else row[name]:.{2 if name == 'IoU' else 0}f}"
+                for name in columns) for scenes, row in table.iterrows())
+            print(f"warp prior {mode or 'of the detector (the defaults)'}: {cells}")
+    finally:
+        module.evaluate_sequence, module.MotionDetector = original, detector
+
+
 if __name__ == "__main__":
     if not SEQUENCES.is_dir():
         sys.exit(f"{SEQUENCES}: run 'make demo' first")
     warnings.simplefilter("ignore")
+    if sys.argv[1:]:  # only these, by name
+        for name in sys.argv[1:]:
+            globals()[name]()
+        sys.exit()
     scene_prior_flow_error()
     height_significance()
     road_estimates()
@@ -517,3 +617,4 @@ if __name__ == "__main__":
     scene_model_amplification()
     scene_agreement_tradeoff()
     false_region_rules()
+    true_depth_prior_bounds()
