@@ -553,6 +553,21 @@ def _true_depth_prior(path, mode: str):
             seen = lands_on(targets, ok, self._pixel_valid, cam.width, cam.height)
             if mode == "occlusion only":
                 flow, seen_prior = super()._static_prior(pose_a, pose_b)
+            if mode.startswith("coarse"):  # the true ranges at the prior's own samples
+                step = self._prior.step
+                rows, cols = -(-cam.height // step), -(-cam.width // step)
+                at = np.minimum(np.arange(rows) * step + (step - 1) // 2, cam.height - 1)
+                across = np.minimum(np.arange(cols) * step + (step - 1) // 2, cam.width - 1)
+                sampled = depth[np.ix_(at, across)]
+
+                class Truth:
+                    def ranges(self, pose, step, shape):
+                        return sampled
+
+                flow, seen_prior = self._prior(pose_a, pose_b, self._prior_road(pose_a, pose_b),
+                                               view=self._pixel_valid, scene=Truth())
+                if mode == "coarse":
+                    return flow, seen_prior
             if mode != "prior":
                 points = pose_a[:3, 3] + depth[..., None] * (self._pixel_rays @ pose_a[:3, :3].T)
                 expected = np.linalg.norm(points - pose_b[:3, 3], axis=-1)
@@ -560,7 +575,7 @@ def _true_depth_prior(path, mode: str):
                 v = np.clip(np.rint(np.nan_to_num(targets[..., 1])), 0, cam.height - 1)
                 there = np.nan_to_num(truth(b)[1][v.astype(int), u.astype(int)], nan=np.inf)
                 hidden = seen & (there < 0.95 * expected)
-                seen = (seen_prior if mode == "occlusion only" else seen) & ~hidden
+                seen = (seen if mode == "occlusion" else seen_prior) & ~hidden
                 cells = grid_average(hidden.astype(np.float32), self.params.grid) > 0.3
                 self._cell_valid = self._cells_before & ~cells
             return flow, seen
@@ -568,7 +583,8 @@ def _true_depth_prior(path, mode: str):
     return TrueDepthDetector
 
 
-def true_depth_prior_bounds() -> None:
+def true_depth_prior_bounds(modes=(None, "prior", "occlusion", "occlusion only", "coarse",
+                                   "coarse, occlusion")) -> None:
     """How far a better static prior could go: ``Params()`` with Farneback over every demo
     sequence, its warp prior replaced by the static scene's flow from the true ranges
     (:func:`_true_depth_prior`), then also with the occlusions by static surfaces handled, and
@@ -582,7 +598,7 @@ def true_depth_prior_bounds() -> None:
     original, detector = module.evaluate_sequence, module.MotionDetector
     columns = ("FP frames", "crossing det.", "preceding det.", "approaching det.", "IoU")
     try:
-        for mode in (None, "prior", "occlusion", "occlusion only"):
+        for mode in modes:
             def run(path, *args, mode=mode, **kwargs):  # in the pool's forked workers too
                 module.MotionDetector = detector if mode is None else _true_depth_prior(path, mode)
                 return original(path, *args, **kwargs)
