@@ -513,7 +513,9 @@ def _true_depth_prior(path, mode: str):
     ``"occlusion"`` also with the pixels whose static point is hidden in the current frame
     behind a nearer static surface (true ranges, 5 %) left out of the warp and their cells
     (30 % of their pixels) not scored; ``"occlusion only"`` that occlusion with the detector's
-    own prior."""
+    own prior; ``"coarse"`` the true ranges read at the detector's prior's own samples (every
+    8 px, as the scene model's are, the flow between them bilinear) and ``"coarse, occlusion"``
+    that with the occlusions handled."""
     from fisheyemotion.calib.base import pixel_grid
     from scipy import ndimage
 
@@ -587,8 +589,9 @@ def true_depth_prior_bounds(modes=(None, "prior", "occlusion", "occlusion only",
                                    "coarse, occlusion")) -> None:
     """How far a better static prior could go: ``Params()`` with Farneback over every demo
     sequence, its warp prior replaced by the static scene's flow from the true ranges
-    (:func:`_true_depth_prior`), then also with the occlusions by static surfaces handled, and
-    that occlusion handling with the detector's own prior."""
+    (:func:`_true_depth_prior`), then also with the occlusions by static surfaces handled, that
+    occlusion handling with the detector's own prior, and the true ranges at the resolution of
+    the detector's prior with and without it."""
     import importlib
 
     from fisheyemotion.eval.evaluate import evaluate, sequence_paths
