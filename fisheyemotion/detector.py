@@ -836,12 +836,3 @@ def _pair_item(item) -> tuple:
                          f"{type(item).__name__}" + (f" of length {len(item)}"
                                                      if isinstance(item, tuple | list) else ""))
     return item[0], item[1]
-
-
-def _pair_item(item) -> tuple:
-    """One ``(frame, pose)`` item of :meth:`MotionDetector.stream`, or a ValueError."""
-    if isinstance(item, np.ndarray) or not isinstance(item, tuple | list) or len(item) != 2:
-        raise ValueError("items: expected (frame, pose) pairs (pose None to estimate it), got "
-                         f"{type(item).__name__}" + (f" of length {len(item)}"
-                                                     if isinstance(item, tuple | list) else ""))
-    return item[0], item[1]
