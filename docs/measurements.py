@@ -515,7 +515,10 @@ def _true_depth_prior(path, mode: str):
     (30 % of their pixels) not scored; ``"occlusion only"`` that occlusion with the detector's
     own prior; ``"coarse"`` the true ranges read at the detector's prior's own samples (every
     8 px, as the scene model's are, the flow between them bilinear) and ``"coarse, occlusion"``
-    that with the occlusions handled."""
+    that with the occlusions handled; ``"coarse, estimated occlusion"`` and ``"estimated
+    occlusion"`` the occlusions estimated from the prior itself (``_estimated_occlusion``)
+    instead of the truth, with the true ranges at the prior's samples and with the detector's
+    own prior."""
     from fisheyemotion.calib.base import pixel_grid
     from scipy import ndimage
 
@@ -570,6 +573,14 @@ def _true_depth_prior(path, mode: str):
                                                view=self._pixel_valid, scene=Truth())
                 if mode == "coarse":
                     return flow, seen_prior
+                if mode == "coarse, estimated occlusion":
+                    return self._estimated_occlusion(flow, seen_prior, pose_a, pose_b, sampled)
+            if mode == "estimated occlusion":
+                flow, seen_prior = super()._static_prior(pose_a, pose_b)
+                step = self._prior.step
+                rows, cols = -(-cam.height // step), -(-cam.width // step)
+                return self._estimated_occlusion(flow, seen_prior, pose_a, pose_b,
+                                                 self.scene.ranges(pose_a, step, (rows, cols)))
             if mode != "prior":
                 points = pose_a[:3, 3] + depth[..., None] * (self._pixel_rays @ pose_a[:3, :3].T)
                 expected = np.linalg.norm(points - pose_b[:3, 3], axis=-1)
@@ -582,11 +593,45 @@ def _true_depth_prior(path, mode: str):
                 self._cell_valid = self._cells_before & ~cells
             return flow, seen
 
+        def _estimated_occlusion(self, flow, seen, pose_a, pose_b, sample_ranges):
+            """Occlusions estimated from the prior itself: each pixel's range as the prior
+            chose it (the road, the far field or ``sample_ranges`` at its 8-px sample),
+            splatted along the prior's flow into a z-buffer of the current frame; a pixel whose
+            point lies 5 % behind what lands on its target is hidden."""
+            from fisheyemotion.flow import grid_upsample
+
+            cam, step = self.camera, self._prior.step
+            if not hasattr(self, "_pixels"):
+                self._pixels = pixel_grid(cam.width, cam.height).astype(np.float64)
+                self._pixel_rays = cam.unproject(self._pixels)[0]
+                self._cells_before = self._cell_valid.copy()
+            dirs = self._pixel_rays @ pose_a[:3, :3].T
+            road = self._prior_road(pose_a, pose_b)
+            depth = np.minimum(road.ray_range(pose_a[:3, 3], dirs, min_down=0.02),
+                               self.params.prior_distance)
+            known = grid_upsample(sample_ranges, step, cam.width, cam.height)
+            with np.errstate(invalid="ignore"):
+                depth = np.where(known < 0.8 * depth, known, depth)
+            points = pose_a[:3, 3] + depth[..., None] * dirs
+            far = np.linalg.norm(points - pose_b[:3, 3], axis=-1)
+            target = np.rint(self._pixels + flow)
+            inside = seen & np.isfinite(far)
+            u, v = target[..., 0].astype(np.intp), target[..., 1].astype(np.intp)
+            inside &= (u >= 0) & (u < cam.width) & (v >= 0) & (v < cam.height)
+            index = np.where(inside, v * cam.width + u, 0)
+            zbuf = np.full(cam.width * cam.height, np.inf)
+            np.minimum.at(zbuf, index[inside], far[inside])
+            hidden = inside & (far > 1.05 * zbuf[index])
+            cells = grid_average(hidden.astype(np.float32), self.params.grid) > 0.3
+            self._cell_valid = self._cells_before & ~cells
+            return flow, seen & ~hidden
+
     return TrueDepthDetector
 
 
 def true_depth_prior_bounds(modes=(None, "prior", "occlusion", "occlusion only", "coarse",
-                                   "coarse, occlusion")) -> None:
+                                   "coarse, occlusion", "coarse, estimated occlusion",
+                                   "estimated occlusion")) -> None:
     """How far a better static prior could go: ``Params()`` with Farneback over every demo
     sequence, its warp prior replaced by the static scene's flow from the true ranges
     (:func:`_true_depth_prior`), then also with the occlusions by static surfaces handled, that
