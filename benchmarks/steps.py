@@ -1,0 +1,96 @@
+"""Where the defaults' work besides the flow goes, step by step (docs/performance.md).
+
+    .venv/bin/python benchmarks/steps.py            # the benchmark's `crossing` pair
+    .venv/bin/python benchmarks/steps.py street     # the tuning street's frames 20 and 23
+                                                    # (needs `make demo`'s sequences)
+
+``MotionDetector.detect_flow`` with ``Params(flow="dis", dis_preset="ultrafast")``, OpenCV on
+one thread, each of ``ROUNDS`` rounds right after a real flow call (as ``make bench``'s
+``default_after_flow``), three passes first to fill the scene model. Each step is timed by a
+wrapper around the function of that name; a step's time includes the steps it calls, so the
+rows do not add up. A profiling aid, not a benchmark: the wrappers cost a little each, and the
+figures move with the machine as ``make bench``'s do.
+"""
+
+from __future__ import annotations
+
+import collections
+import functools
+import importlib
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+import fisheyemotion as fm
+from fisheyemotion import synth
+from fisheyemotion.frames import to_gray
+from fisheyemotion.sequence import Sequence
+
+ROOT = Path(__file__).resolve().parents[1]
+ROUNDS = 100
+#: Methods of MotionDetector, then functions as the detector module calls them.
+METHODS = ("_measure", "_decide", "_assemble", "_explain_standing", "_textured_cells",
+           "_supported_off_arc", "_grown", "_temporal_filter")
+FUNCTIONS = ("constraints", "cell_sigma", "triangulate_range", "grid_upsample", "grow_to_extent",
+             "static_explained", "cell_residual", "grid_transfer", "segment_cells", "grid_average")
+
+
+def _pair(which: str):
+    if which == "street":
+        seq = Sequence(ROOT / "data" / "generated" / "demo" / "sequences" / "street_kb")
+        return (seq.camera, to_gray(seq.frame(20), "frame"), to_gray(seq.frame(23), "frame"),
+                seq.poses[20], seq.poses[23], seq.roi())
+    cam = fm.calib.load(ROOT / "data" / "calib" / "front_kb_640x480.yaml")
+    renderer = synth.Renderer(cam, synth.load_scenario("crossing"))
+    frames = [renderer.render(k) for k in (0, 3)]
+    g0, g1 = (np.ascontiguousarray(f.image.mean(axis=-1).astype(np.uint8)) for f in frames)
+    return cam, g0, g1, frames[0].pose, frames[1].pose, renderer.roi()
+
+
+def main(which: str = "crossing") -> None:
+    cv2.setNumThreads(1)
+    detector_module = importlib.import_module("fisheyemotion.detector")
+    totals: collections.defaultdict[str, float] = collections.defaultdict(float)
+
+    def timed(owner, name):
+        function = getattr(owner, name)
+
+        @functools.wraps(function)
+        def wrapper(*args, **kwargs):
+            start = time.perf_counter()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                totals[name] += time.perf_counter() - start
+        setattr(owner, name, wrapper)
+
+    for name in METHODS:
+        timed(detector_module.MotionDetector, name)
+    for name in FUNCTIONS:
+        timed(detector_module, name)
+    cam, g0, g1, p0, p1, roi = _pair(which)
+    det = fm.MotionDetector(cam, params=fm.Params(flow="dis", dis_preset="ultrafast"), roi=roi)
+    flow = det.flow(g0, g1, p0, p1)
+    for _ in range(3):
+        det.detect_flow(flow, p0, p1, prev=g0, curr=g1, stream=True)
+    # The first region of a process imports the extent's scikit-image and scipy modules: out of
+    # the rounds.
+    importlib.import_module("skimage.segmentation")
+    importlib.import_module("skimage.morphology")
+    totals.clear()
+    total = 0.0
+    for _ in range(ROUNDS):
+        flow = det.flow(g0, g1, p0, p1)
+        start = time.perf_counter()
+        det.detect_flow(flow, p0, p1, prev=g0, curr=g1, stream=True)
+        total += time.perf_counter() - start
+    print(f"{which}: detect_flow {1000 * total / ROUNDS:.2f} ms a pair ({ROUNDS} rounds)")
+    for name, seconds in sorted(totals.items(), key=lambda item: -item[1]):
+        print(f"  {name:20s} {1000 * seconds / ROUNDS:6.2f}")
+
+
+if __name__ == "__main__":
+    main(*sys.argv[1:2])
