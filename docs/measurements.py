@@ -504,6 +504,61 @@ def false_region_rules() -> None:
         print(f"  drop {rule}: false-positive frames " + ", ".join(cells))
 
 
+def stored_point_errors(name: str = "street_kb") -> None:
+    """The points the static-scene model stores, against the true range at their cells, per
+    surface: how many are more than 10 % off, how many of those were stored where the model
+    already held a range that was itself more than 10 % off, and how many of those repeat the
+    model's range within 5 % (the flow warped by the model's prior read it back)."""
+    import collections
+    import importlib
+
+    scene_module = importlib.import_module("fisheyemotion.static_scene")
+    seq = Sequence(SEQUENCES / name)
+    renderer = Renderer(seq.camera, load_scenario(seq.path / "scenario.yaml"), supersample=1)
+    det = fm.MotionDetector(seq.camera, params=fm.Params(), roi=seq.roi())
+    gap = det.params.frame_gap
+    kinds = {int(k): str(v) for k, v in zip(seq.objects.id, seq.objects.kind, strict=True)}
+    stored = {}
+    original = scene_module.StaticScene.add
+
+    def add(self, rays, ranges, pose, static):
+        stored["cells"] = (ranges.copy(), static.copy())
+        return original(self, rays, ranges, pose, static)
+
+    counts = collections.defaultdict(lambda: np.zeros(4, int))
+    centres = det._centres.round().astype(int)
+    rows = np.clip(centres[..., 1], 0, seq.camera.height - 1)
+    cols = np.clip(centres[..., 0], 0, seq.camera.width - 1)
+    grays = _grays(seq)
+    scene_module.StaticScene.add = add
+    try:
+        for k in range(gap, len(seq)):
+            pose0, pose1 = seq.poses[k - gap], seq.poses[k]
+            before = det._scene_ranges_at_cells(pose0) if len(det.scene) else None
+            flow = det.flow(grays[k - gap], grays[k], pose0, pose1)
+            det.detect_flow(flow, pose0, pose1, prev=grays[k - gap], curr=grays[k], stream=True)
+            ranges, static = stored.pop("cells")
+            frame = renderer.render(k - gap)
+            truth, ids = frame.range[rows, cols], frame.ids[rows, cols]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                off = static & np.isfinite(ranges) & (np.abs(ranges / truth - 1) > 0.1)
+                model_off = off & (np.abs(before / truth - 1) > 0.1) if before is not None \
+                    else np.zeros_like(off)
+                repeated = model_off & (np.abs(ranges / before - 1) < 0.05) \
+                    if before is not None else np.zeros_like(off)
+            for kind in np.unique(ids[static]):
+                cells = static & np.isfinite(ranges) & (ids == kind)
+                label = "road, sky" if kind == 0 else kinds.get(int(kind), "ego body")
+                counts[label] += [cells.sum(), (cells & off).sum(), (cells & model_off).sum(),
+                                  (cells & repeated).sum()]
+    finally:
+        scene_module.StaticScene.add = original
+    for label, (n, off, model_off, repeated) in sorted(counts.items(), key=lambda kv: -kv[1][0]):
+        print(f"{name}, {label}: {n} points stored, {off} ({100 * off / max(n, 1):.0f} %) more "
+              f"than 10 % off; of those {model_off} where the model's range was as far off, "
+              f"{repeated} repeating it within 5 %")
+
+
 def _true_depth_prior(path, mode: str):
     """A :class:`~fisheyemotion.MotionDetector` whose warp prior is the static scene's flow
     from the renderer's true ranges of the pair's previous frame (per pixel, sharp; moving
@@ -681,4 +736,5 @@ if __name__ == "__main__":
     scene_model_amplification()
     scene_agreement_tradeoff()
     false_region_rules()
+    stored_point_errors()
     true_depth_prior_bounds()
