@@ -53,6 +53,7 @@ from .photometric import (
     epipolar_directions,
     off_arc_supported,
     static_explained,
+    sweep_ranges,
 )
 from .prior import EgoFlowPrior, lands_on, static_scene_targets
 from .range_consistency import RangeMemory
@@ -517,8 +518,11 @@ class MotionDetector:
                     static = valid & (likelihood < p.threshold)
                     if contact:  # static by its arc, but its range or the model's is wrong
                         static &= ~doubted
-                    self.scene.add(self._rays0, np.where(conditioned, ranges, np.nan), t0,
-                                   static)
+                stored = np.where(conditioned, ranges, np.nan)
+                if p.scene_sweep > 0 and gray is not None and curr is not None:
+                    stored = self._swept_ranges(stored, static, flow, cell_flow, gray, curr,
+                                                t0, t1)
+                self.scene.add(self._rays0, stored, t0, static)
         return _Measured(flow, cell_flow, res, likelihood, valid, rays1, t0, t1, gray, curr,
                          sigma, static_flow, self.road,
                          self._prior_road(t0, t1) if p.grow > 0 else None, stream,
@@ -601,6 +605,28 @@ class MotionDetector:
                                                   cells, at - measured_at[search], measured)
         out = off_arc.copy()
         out[r, c] |= scored
+        return out
+
+    def _swept_ranges(self, ranges, static, flow, cell_flow, gray, curr, t0, t1
+                      ) -> NDArray[np.float64]:
+        """``ranges`` with the cells about to be stored whose flow explains the frames worse
+        than ``params.scene_sweep`` replaced by the range along their arc that explains them
+        better by ``params.scene_sweep_margin`` (:func:`~fisheyemotion.photometric.sweep_ranges`)."""
+        p = self.params
+        with np.errstate(invalid="ignore"):
+            cells = static & np.isfinite(ranges)
+            residual = cell_residual(gray, curr, flow, p.grid, cells)
+            poor = cells & (residual >= p.scene_sweep)
+        if not poor.any():
+            return ranges
+        r, c = np.nonzero(poor)
+        swept, best = sweep_ranges(self.camera, gray, curr, flow, p.grid, poor, self._rays0[r, c],
+                                   self._centres[r, c] + cell_flow[r, c], t0, t1,
+                                   distance=p.prior_distance)
+        with np.errstate(invalid="ignore"):
+            better = best < residual[r, c] - p.scene_sweep_margin
+        out = ranges.copy()
+        out[r[better], c[better]] = swept[better]
         return out
 
     def _static_prior(self, pose_a: NDArray, pose_b: NDArray

@@ -154,6 +154,16 @@ class Params:
         (:mod:`fisheyemotion.range_consistency`: three views of a static point agree, of a point
         moving along its epipolar arc do not); a cell at this many reaches the threshold.
         Measured, not the default yet (``docs/evaluation.md``, *Three views*).
+    scene_sweep : float
+        Streams only, 0 (off) by default: grey levels. A cell about to enter the scene model
+        whose measured flow explains the frames worse than this (mean absolute residual) is
+        stored at the range along its epipolar arc that explains them best
+        (:func:`fisheyemotion.photometric.sweep_ranges`), where that range beats the measured
+        one by ``scene_sweep_margin``: the model stops reading its own wrong ranges back through
+        the flow its prior warped. Measured, not the default (``docs/evaluation.md``,
+        *Swept scene ranges*).
+    scene_sweep_margin : float
+        Grey levels by which the swept range must explain the cell better than the measured one.
     scene_memory : int
         Detections whose static points the scene model keeps.
     prior_distance : float
@@ -251,6 +261,8 @@ class Params:
     contact_ratio: float = 1.05
     contact_arc: float = 0.03
     range_consistency: float = 0.0
+    scene_sweep: float = 0.0
+    scene_sweep_margin: float = 5.0
     scene_prior: bool = True
     scene_memory: int = 3
     frame_gap: int = 3
@@ -281,7 +293,8 @@ class Params:
         for name in ("lambda_h", "lambda_p", "lambda_p_ratio", "min_baseline", "epipole_margin",
                      "threshold", "saturation", "fb_tolerance", "fb_relative", "min_texture",
                      "min_parallax", "seed_threshold", "extend_threshold", "contact_ratio",
-                     "contact_arc", "range_consistency", "extent_reach", "extent_static",
+                     "contact_arc", "range_consistency", "scene_sweep", "scene_sweep_margin",
+                     "extent_reach", "extent_static",
                      "photometric_margin", "photometric_tolerance", "photometric_search",
                      "significance", "flow_sigma", "refine_tolerance"):
             v = getattr(self, name)

@@ -57,14 +57,20 @@ from numpy.typing import NDArray
 from .calib.base import CameraModel
 from .calib.transforms import rotate
 from .constraints import nearest_static_ray
+from .prior import static_scene_targets
+from .road import Road
 
 _STEP = 1e-4  # radians along the epipolar circle, either way, for its image direction
 #: Pixels between the static correspondences that the off-arc test compares
 #: (``Params.photometric_search``).
 SEARCH_STEP = 1.0
 
-__all__ = ["SEARCH_STEP", "arc_candidates", "best_candidate", "cell_residual",
-           "epipolar_directions", "off_arc_supported", "static_explained"]
+#: Ranges (metres) that :func:`sweep_ranges` tries: 24 from 40 m to 1 m, uniform in inverse
+#: range (so uniform in parallax).
+SWEEP_RANGES = 1.0 / np.linspace(1.0 / 40.0, 1.0, 24)
+
+__all__ = ["SEARCH_STEP", "SWEEP_RANGES", "arc_candidates", "best_candidate", "cell_residual",
+           "epipolar_directions", "off_arc_supported", "static_explained", "sweep_ranges"]
 
 
 def cell_residual(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArray[np.float32],
@@ -288,3 +294,55 @@ def off_arc_supported(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
     with np.errstate(invalid="ignore"):
         out[r, c] = (best > measured[r, c] + margin) | ~shifted
     return out
+
+
+def sweep_ranges(camera: CameraModel, prev: NDArray[np.uint8], curr: NDArray[np.uint8],
+                 flow: NDArray[np.float32], grid: int, cells: NDArray[np.bool_],
+                 rays0: NDArray[np.float64], measured_at: NDArray[np.float64], pose0: NDArray,
+                 pose1: NDArray, ranges: NDArray[np.float64] = SWEEP_RANGES, *,
+                 distance: float = 1e3) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The range along each cell's epipolar arc whose static correspondence explains the frames
+    best: a plane sweep of whole cells.
+
+    For each of ``ranges``, the static point at that range along the cell's ray of the previous
+    frame is seen at ``t`` in the current one (:func:`fisheyemotion.prior.static_scene_targets`);
+    the cell's measured flow moved as a whole by ``t - measured_at`` is scored by its
+    :func:`cell_residual`, and the best range wins (:func:`best_candidate`). The measured flow's
+    own shape inside the cell is kept: only where the cell lands changes, along its arc.
+
+    Parameters
+    ----------
+    camera : CameraModel
+    prev, curr : ndarray of uint8, shape (H, W)
+    flow : ndarray of float32, shape (H, W, 2)
+        The measured flow.
+    grid : int
+    cells : ndarray of bool, shape (H // grid, W // grid)
+        The ``n`` cells, row-major.
+    rays0 : ndarray, shape (n, 3)
+        Their rays in the previous camera's frame.
+    measured_at : ndarray, shape (n, 2)
+        Where the measured flow puts each cell's centre in the current frame.
+    pose0, pose1 : ndarray, shape (4, 4)
+        ``world_from_cam`` of the two frames (validated by the caller).
+    ranges : ndarray, shape (m,)
+        Metres to try.
+    distance : float
+        Metres beyond which a range counts as the far field (as the ego prior's).
+
+    Returns
+    -------
+    range : ndarray of float64, shape (n,)
+        The best range; NaN where no range's correspondence could be scored.
+    residual : ndarray of float64, shape (n,)
+        Its residual, grey levels; NaN there too.
+    """
+    n = len(rays0)
+    shifts = np.empty((len(ranges), n, 2))
+    for i, rng in enumerate(np.asarray(ranges, np.float64)):
+        target, ok = static_scene_targets(camera, rays0, pose0, pose1, Road.unknown(), distance,
+                                          np.full(n, rng))
+        shifts[i] = np.where(ok[:, None], target - measured_at, np.nan)
+    index, residual = best_candidate(prev, curr, flow, grid, cells, shifts)
+    best = np.where(index >= 0, np.asarray(ranges, np.float64)[np.maximum(index, 0)], np.nan)
+    return best, residual

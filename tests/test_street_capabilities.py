@@ -585,3 +585,97 @@ def test_a_deviation_along_an_edge_is_not_supported_by_the_images_and_one_across
     nan_shift[0] = np.nan                                 # no arc there: counts as supported
     out = off_arc_supported(stripes, np.roll(stripes, 3, axis=1), flow, 5, 10.0, cells, nan_shift)
     assert out[3, 3] and not out[cells].all()
+
+
+# ---- swept scene ranges (Params.scene_sweep, opt-in) ---------------------------------------
+
+#: A parked car and a wall with textures that do not repeat (a brick wall's period gives a sweep
+#: along the arc several minima: ``docs/evaluation.md``, *Swept scene ranges*).
+PLAIN = synth.parse_scenario({
+    "name": "plain", "frames": 4, "ego": {"speed_kmh": 25},
+    "camera": {"position": [2, 0, 0.9], "pitch_deg": 10},
+    "static": [{"id": 20, "kind": "wall", "center": [9, -4.0], "size": [14, 0.3, 3.0],
+                "texture": "coffee"},
+               {"id": 21, "kind": "parked_car", "center": [8, 3.0], "texture": "camera"}]})
+
+
+def _plain_pair():
+    """Frames 0 and 3 of PLAIN (gray), their truths, and a flow that followed a wrong prior on
+    the parked car: each of its pixels moved as the static point at ``0.6`` of its range would."""
+    from fisheyemotion.calib.base import pixel_grid
+
+    from fisheyemotion.prior import static_scene_targets
+
+    r = synth.Renderer(CAM, PLAIN, supersample=1)
+    f0, f1 = r.render(0), r.render(3)
+    g0, g1 = (cv2.cvtColor(f.image, cv2.COLOR_BGR2GRAY) for f in (f0, f1))
+    pixels = pixel_grid(CAM.width, CAM.height).astype(np.float64)
+    rays, _ = CAM.unproject(pixels)
+    car = f0.ids == 21
+    near = np.where(car, 0.6 * f0.range, np.inf)
+    target, ok = static_scene_targets(CAM, rays, f0.pose, f1.pose, fm.Road(), 1e3, near)
+    exact = np.nan_to_num(r.flow(3, gap=3))
+    flow = np.where((car & ok)[..., None], target - pixels, exact).astype(np.float32)
+    return r, f0, f1, g0, g1, flow
+
+
+def _car_cells(f0, grid):
+    """The cells wholly on the parked car, their rays, centres and true ranges."""
+    from fisheyemotion.flow import grid_average, grid_centres
+
+    cells = grid_average((f0.ids == 21).astype(np.float32), grid) > 1 - 1e-6
+    centres = grid_centres(CAM.width, CAM.height, grid)
+    r, c = np.nonzero(cells)
+    rays, _ = CAM.unproject(centres[r, c])
+    at = np.rint(centres[r, c]).astype(int)
+    return cells, r, c, rays, centres, f0.range[at[:, 1], at[:, 0]]
+
+
+def test_sweep_ranges_finds_a_static_cells_range_from_a_wrong_flow():
+    """From the flow of a car read at 0.6 of its range, the sweep along each cell's arc lands
+    nearer its true range, in the candidates around it, and explains the frames better."""
+    from fisheyemotion.flow import grid_average
+    from fisheyemotion.photometric import cell_residual, sweep_ranges
+
+    _, f0, f1, g0, g1, flow = _plain_pair()
+    grid = 5
+    cells, r, c, rays, centres, truth = _car_cells(f0, grid)
+    assert len(r) >= 30
+    at = centres[r, c] + grid_average(flow, grid)[r, c]
+    swept, residual = sweep_ranges(CAM, g0, g1, flow, grid, cells, rays, at, f0.pose, f1.pose)
+    error = np.abs(np.log(swept / truth))
+    assert np.mean(error < abs(np.log(0.6))) > 0.8      # nearer than the flow's range
+    assert np.mean(np.abs(swept / truth - 1) < 0.3) > 0.8
+    before = cell_residual(g0, g1, flow, grid, cells)[r, c]
+    assert np.median(residual) < 0.5 * np.median(before)
+
+
+def test_scene_sweep_is_off_by_default_and_stores_the_swept_ranges_when_on():
+    from fisheyemotion.static_scene import StaticScene
+
+    assert fm.Params().scene_sweep == 0.0 == fm.Params.paper().scene_sweep
+    with pytest.raises(ValueError, match="scene_sweep"):
+        fm.Params(scene_sweep=-1.0)
+    r, f0, f1, g0, g1, flow = _plain_pair()
+    errors = {}
+    for sweep in (0.0, 10.0):
+        det = fm.MotionDetector(CAM, roi=r.roi(), params=fm.Params(scene_sweep=sweep))
+        stored = []
+        original = StaticScene.add
+
+        def add(self, rays, ranges, pose, static, stored=stored, original=original):
+            stored.append((ranges.copy(), static.copy()))
+            return original(self, rays, ranges, pose, static)
+
+        StaticScene.add = add
+        try:
+            det.detect_flow(flow, f0.pose, f1.pose, prev=g0, curr=g1, stream=True)
+        finally:
+            StaticScene.add = original
+        ranges, static = stored[0]
+        _, rr, cc, _, _, truth = _car_cells(f0, det.params.grid)
+        kept = (static & np.isfinite(ranges))[rr, cc]
+        assert kept.sum() >= 10
+        errors[sweep] = np.abs(ranges[rr, cc][kept] / truth[kept] - 1)
+    assert np.median(errors[0.0]) > 0.3      # the wrong flow's ranges, stored as measured
+    assert np.median(errors[10.0]) < 0.2     # swept along the arc
