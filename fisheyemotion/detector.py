@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from . import _warmup
 from .calib.base import CameraModel
-from .calib.transforms import check_rigid
+from .calib.transforms import check_rigid, rotate
 from .constraints import ConstraintResult, constraints, nearest_static_ray
 from .detection import CONSTRAINT_NAMES, Detection, Grid, LazyMaps
 from .egomotion import PoseTracker
@@ -70,6 +70,9 @@ FLOODED = 0.5
 SCENE_AGREEMENT = 0.05
 #: ... or within this many of the cell's range errors (from its flow's error), if larger.
 AGREEMENT_SIGMAS = 2.0
+#: Relative range difference within which ``Params.scene_sweep`` takes a cell's range for the
+#: road plane's (and leaves the cell alone).
+ROAD_READING = 0.1
 
 
 class _Measured(NamedTuple):
@@ -611,10 +614,14 @@ class MotionDetector:
                       ) -> NDArray[np.float64]:
         """``ranges`` with the cells about to be stored whose flow explains the frames worse
         than ``params.scene_sweep`` replaced by the range along their arc that explains them
-        better by ``params.scene_sweep_margin`` (:func:`~fisheyemotion.photometric.sweep_ranges`)."""
+        better by ``params.scene_sweep_margin`` (:func:`~fisheyemotion.photometric.sweep_ranges`);
+        not on the cells read on the road."""
         p = self.params
         with np.errstate(invalid="ignore"):
-            cells = static & np.isfinite(ranges)
+            # Cells the flow reads on the road (within ROAD_READING of its plane) are left to
+            # the plane: the prior reads the model only where it holds something nearer.
+            road = self.road.ray_range(t0[:3, 3], rotate(self._rays0, t0[:3, :3]))
+            cells = static & np.isfinite(ranges) & ~(np.abs(ranges / road - 1) < ROAD_READING)
             residual = cell_residual(gray, curr, flow, p.grid, cells)
             poor = cells & (residual >= p.scene_sweep)
         if not poor.any():
