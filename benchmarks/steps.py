@@ -3,8 +3,10 @@
     .venv/bin/python benchmarks/steps.py            # the benchmark's `crossing` pair
     .venv/bin/python benchmarks/steps.py street     # the tuning street's frames 20 and 23
                                                     # (needs `make demo`'s sequences)
+    .venv/bin/python benchmarks/steps.py street data/params/scene_sweep.yaml   # other Params
 
-``MotionDetector.detect_flow`` with ``Params(flow="dis", dis_preset="ultrafast")``, OpenCV on
+``MotionDetector.detect_flow`` with ``Params(flow="dis", dis_preset="ultrafast")`` (or a Params
+file's, with that flow), OpenCV on
 one thread, each of ``ROUNDS`` rounds right after a real flow call (as ``make bench``'s
 ``default_after_flow``), three passes first to fill the scene model. Each step is timed by a
 wrapper around the function of that name; a step's time includes the steps it calls, so the
@@ -50,7 +52,7 @@ def _pair(which: str):
     return cam, g0, g1, frames[0].pose, frames[1].pose, renderer.roi()
 
 
-def main(which: str = "crossing") -> None:
+def main(which: str = "crossing", params: str | None = None) -> None:
     cv2.setNumThreads(1)
     detector_module = importlib.import_module("fisheyemotion.detector")
     totals: collections.defaultdict[str, float] = collections.defaultdict(float)
@@ -72,7 +74,9 @@ def main(which: str = "crossing") -> None:
     for name in FUNCTIONS:
         timed(detector_module, name)
     cam, g0, g1, p0, p1, roi = _pair(which)
-    det = fm.MotionDetector(cam, params=fm.Params(flow="dis", dis_preset="ultrafast"), roi=roi)
+    settings = fm.Params() if params is None else fm.Params.load(params)  # a Params file
+    det = fm.MotionDetector(cam, params=settings.replace(flow="dis", dis_preset="ultrafast"),
+                            roi=roi)
     flow = det.flow(g0, g1, p0, p1)
     for _ in range(3):
         det.detect_flow(flow, p0, p1, prev=g0, curr=g1, stream=True)
@@ -87,10 +91,11 @@ def main(which: str = "crossing") -> None:
         start = time.perf_counter()
         det.detect_flow(flow, p0, p1, prev=g0, curr=g1, stream=True)
         total += time.perf_counter() - start
-    print(f"{which}: detect_flow {1000 * total / ROUNDS:.2f} ms a pair ({ROUNDS} rounds)")
+    print(f"{which}{'' if params is None else ', ' + params}: detect_flow "
+          f"{1000 * total / ROUNDS:.2f} ms a pair ({ROUNDS} rounds)")
     for name, seconds in sorted(totals.items(), key=lambda item: -item[1]):
         print(f"  {name:20s} {1000 * seconds / ROUNDS:6.2f}")
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:2])
+    main(*sys.argv[1:3])
