@@ -504,18 +504,19 @@ def false_region_rules() -> None:
         print(f"  drop {rule}: false-positive frames " + ", ".join(cells))
 
 
-def stored_point_errors(name: str = "street_kb") -> None:
+def stored_point_errors(name: str = "street_kb", params: fm.Params | None = None) -> None:
     """The points the static-scene model stores, against the true range at their cells, per
     surface: how many are more than 10 % off, how many of those were stored where the model
     already held a range that was itself more than 10 % off, and how many of those repeat the
-    model's range within 5 % (the flow warped by the model's prior read it back)."""
+    model's range within 5 % (the flow warped by the model's prior read it back). ``params``:
+    the detector's (default ``Params()``; e.g. ``Params(scene_sweep=15.0)``)."""
     import collections
     import importlib
 
     scene_module = importlib.import_module("fisheyemotion.static_scene")
     seq = Sequence(SEQUENCES / name)
     renderer = Renderer(seq.camera, load_scenario(seq.path / "scenario.yaml"), supersample=1)
-    det = fm.MotionDetector(seq.camera, params=fm.Params(), roi=seq.roi())
+    det = fm.MotionDetector(seq.camera, params=params or fm.Params(), roi=seq.roi())
     gap = det.params.frame_gap
     kinds = {int(k): str(v) for k, v in zip(seq.objects.id, seq.objects.kind, strict=True)}
     stored = {}
