@@ -650,28 +650,26 @@ def test_sweep_ranges_finds_a_static_cells_range_from_a_wrong_flow():
     assert np.median(residual) < 0.5 * np.median(before)
 
 
-def test_scene_sweep_is_off_by_default_and_stores_the_swept_ranges_when_on():
+def test_scene_sweep_is_off_by_default_and_stores_the_swept_ranges_when_on(monkeypatch):
     from fisheyemotion.static_scene import StaticScene
 
     assert fm.Params().scene_sweep == 0.0 == fm.Params.paper().scene_sweep
     with pytest.raises(ValueError, match="scene_sweep"):
         fm.Params(scene_sweep=-1.0)
     r, f0, f1, g0, g1, flow = _plain_pair()
+    stored = []
+    original = StaticScene.add
+
+    def add(self, rays, ranges, pose, static):
+        stored.append((ranges.copy(), static.copy()))
+        return original(self, rays, ranges, pose, static)
+
+    monkeypatch.setattr(StaticScene, "add", add)
     errors = {}
     for sweep in (0.0, 10.0):
         det = fm.MotionDetector(CAM, roi=r.roi(), params=fm.Params(scene_sweep=sweep))
-        stored = []
-        original = StaticScene.add
-
-        def add(self, rays, ranges, pose, static, stored=stored, original=original):
-            stored.append((ranges.copy(), static.copy()))
-            return original(self, rays, ranges, pose, static)
-
-        StaticScene.add = add
-        try:
-            det.detect_flow(flow, f0.pose, f1.pose, prev=g0, curr=g1, stream=True)
-        finally:
-            StaticScene.add = original
+        stored.clear()
+        det.detect_flow(flow, f0.pose, f1.pose, prev=g0, curr=g1, stream=True)
         ranges, static = stored[0]
         _, rr, cc, _, _, truth = _car_cells(f0, det.params.grid)
         kept = (static & np.isfinite(ranges))[rr, cc]
