@@ -136,13 +136,15 @@ def street_pair():
 
 
 @pytest.mark.parametrize("name", ["farneback", "dis-ultrafast"])
-@pytest.mark.parametrize("stage", ["flow_alone", "default_after_flow"])
+@pytest.mark.parametrize("stage", ["flow_alone", "default_after_flow", "sweep_after_flow"])
 def test_detect_street_pair(benchmark, street_pair, name, stage):
     """``default_after_flow`` of :func:`test_detect_stage` on a cluttered street's pair, cv2 on
-    one thread."""
+    one thread; ``sweep_after_flow`` the same with the opt-in swept scene ranges
+    (``data/params/scene_sweep.yaml``)."""
     g0, g1, p0, p1, roi = street_pair
     benchmark.group = f"street-{name}-1t"
-    det = fm.MotionDetector(CAM, params=fm.Params(**CONFIGS[name]), roi=roi)
+    sweep = {"scene_sweep": 15.0, "scene_sweep_margin": 5.0} if stage == "sweep_after_flow" else {}
+    det = fm.MotionDetector(CAM, params=fm.Params(**CONFIGS[name], **sweep), roi=roi)
     if stage == "flow_alone":
         benchmark(det._flow, g0, g1)
         return
