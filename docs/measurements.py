@@ -654,6 +654,7 @@ def _true_depth_prior(path, mode: str):
             chose it (the road, the far field or ``sample_ranges`` at its 8-px sample),
             splatted along the prior's flow into a z-buffer of the current frame; a pixel whose
             point lies 5 % behind what lands on its target is hidden."""
+            from fisheyemotion import prior
             from fisheyemotion.flow import grid_upsample
 
             cam, step = self.camera, self._prior.step
@@ -663,11 +664,13 @@ def _true_depth_prior(path, mode: str):
                 self._cells_before = self._cell_valid.copy()
             dirs = self._pixel_rays @ pose_a[:3, :3].T
             road = self._prior_road(pose_a, pose_b)
-            depth = np.minimum(road.ray_range(pose_a[:3, 3], dirs, min_down=0.02),
+            # The depth static_scene_targets chooses (road or far field, unless the model holds
+            # something clearly nearer), per pixel.
+            depth = np.minimum(road.ray_range(pose_a[:3, 3], dirs, min_down=prior._HORIZON_SIN),
                                self.params.prior_distance)
             known = grid_upsample(sample_ranges, step, cam.width, cam.height)
             with np.errstate(invalid="ignore"):
-                depth = np.where(known < 0.8 * depth, known, depth)
+                depth = np.where(known < prior.OCCLUDER_RATIO * depth, known, depth)
             points = pose_a[:3, 3] + depth[..., None] * dirs
             far = np.linalg.norm(points - pose_b[:3, 3], axis=-1)
             target = np.rint(self._pixels + flow)

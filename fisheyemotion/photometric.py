@@ -337,12 +337,12 @@ def sweep_ranges(camera: CameraModel, prev: NDArray[np.uint8], curr: NDArray[np.
     residual : ndarray of float64, shape (n,)
         Its residual, grey levels; NaN there too.
     """
-    n = len(rays0)
-    shifts = np.empty((len(ranges), n, 2))
-    for i, rng in enumerate(np.asarray(ranges, np.float64)):
-        target, ok = static_scene_targets(camera, rays0, pose0, pose1, Road.unknown(), distance,
-                                          np.full(n, rng))
-        shifts[i] = np.where(ok[:, None], target - measured_at, np.nan)
+    ranges = np.asarray(ranges, np.float64)
+    shape = (len(ranges), len(rays0))  # every candidate of every cell, in one projection
+    target, ok = static_scene_targets(camera, np.broadcast_to(rays0, (*shape, 3)), pose0, pose1,
+                                      Road.unknown(), distance,
+                                      np.broadcast_to(ranges[:, None], shape))
+    shifts = np.where(ok[..., None], target - measured_at, np.nan)
     index, residual = best_candidate(prev, curr, flow, grid, cells, shifts)
-    best = np.where(index >= 0, np.asarray(ranges, np.float64)[np.maximum(index, 0)], np.nan)
+    best = np.where(index >= 0, ranges[np.maximum(index, 0)], np.nan)
     return best, residual
