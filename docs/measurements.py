@@ -690,12 +690,13 @@ def _true_depth_prior(path, mode: str):
 
 def true_depth_prior_bounds(modes=(None, "prior", "occlusion", "occlusion only", "coarse",
                                    "coarse, occlusion", "coarse, estimated occlusion",
-                                   "estimated occlusion")) -> None:
+                                   "estimated occlusion"), params: fm.Params | None = None) -> None:
     """How far a better static prior could go: ``Params()`` with Farneback over every demo
     sequence, its warp prior replaced by the static scene's flow from the true ranges
     (:func:`_true_depth_prior`), then also with the occlusions by static surfaces handled, that
     occlusion handling with the detector's own prior, and the true ranges at the resolution of
-    the detector's prior with and without it."""
+    the detector's prior with and without it. ``params``: the detector's (default ``Params()``;
+    e.g. ``Params(scene_sweep=15.0)``)."""
     import importlib
 
     from fisheyemotion.eval.evaluate import evaluate, sequence_paths
@@ -710,8 +711,9 @@ def true_depth_prior_bounds(modes=(None, "prior", "occlusion", "occlusion only",
                 module.MotionDetector = detector if mode is None else _true_depth_prior(path, mode)
                 return original(path, *args, **kwargs)
             module.evaluate_sequence = run
-            table = groups_table(evaluate(sequence_paths([SEQUENCES]), fm.Params(), workers=2,
-                                          progress=False, ablation=False)).set_index("scenes")
+            table = groups_table(evaluate(sequence_paths([SEQUENCES]), params or fm.Params(),
+                                          workers=2, progress=False, ablation=False)
+                                 ).set_index("scenes")
             cells = "; ".join(f"{scenes}: " + ", ".join(
                 f"{name} {100 * row[name] if name != 'IoU' else row[name]:.{2 if name == 'IoU' else 0}f}"
                 for name in columns) for scenes, row in table.iterrows())

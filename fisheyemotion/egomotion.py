@@ -238,6 +238,17 @@ def _background(first, inliers, second, others, pixels0, shape):
     return first, inliers
 
 
+def rival_iterations(inliers: int, rest: int, *, confidence: float = 0.99) -> int:
+    """RANSAC iterations that find, with ``confidence``, a rival motion among ``rest`` outliers
+    of a first hypothesis with ``inliers`` inliers: a rival has at least ``RIVAL_SHARE`` of
+    ``inliers`` among them, so at least that inlier ratio ``w``, and a minimal sample of 5 is
+    all its own with probability ``w^5`` (at least ``MIN_ITERATIONS``)."""
+    w = min(1.0, RIVAL_SHARE * inliers / max(rest, 1))
+    if w >= 1.0:
+        return MIN_ITERATIONS
+    return max(MIN_ITERATIONS, math.ceil(math.log(1 - confidence) / math.log(1 - w ** 5)))
+
+
 def _two_hypotheses(rays0, rays1, second_iterations=None, **ransac):
     """:func:`relative_pose`, and again on its outliers (at most ``second_iterations``):
     ``(first, inliers, second, others)`` (``second`` None, ``others`` all False, where there is
@@ -248,7 +259,8 @@ def _two_hypotheses(rays0, rays1, second_iterations=None, **ransac):
     if first is None or rest.sum() < MIN_SECOND_HYPOTHESIS:
         return first, inliers, None, others
     if second_iterations is not None:
-        ransac = {**ransac, "max_iterations": second_iterations}
+        ransac = {**ransac, "max_iterations": min(second_iterations,
+                                                  rival_iterations(inliers.sum(), rest.sum()))}
     second, inliers2 = relative_pose(rays0[rest], rays1[rest], **ransac)
     if second is not None:
         others[np.flatnonzero(rest)[inliers2]] = True
