@@ -20,6 +20,15 @@ _LK = {"winSize": (7, 7), "maxLevel": 4}
 _LK_GUESSED = {**_LK, "maxLevel": 1}
 
 
+def _mask_u8(mask: NDArray) -> NDArray[np.uint8]:
+    """``mask`` as OpenCV's 8-bit mask (non-zero: used); a contiguous boolean one is viewed as
+    0/1 bytes, not copied."""
+    mask = np.asarray(mask)
+    if mask.dtype == np.bool_ and mask.flags.c_contiguous:
+        return mask.view(np.uint8)
+    return np.where(mask, 255, 0).astype(np.uint8)
+
+
 def track_corners(gray0: NDArray[np.uint8], gray1: NDArray[np.uint8], *,
                   mask: NDArray | None = None, corners: int = 600,
                   min_distance: int = 7, fb_tolerance: float = 0.5,
@@ -42,7 +51,7 @@ def track_corners(gray0: NDArray[np.uint8], gray1: NDArray[np.uint8], *,
         Pixels of the tracks that came back within ``fb_tolerance`` pixels when tracked from
         ``gray1`` to ``gray0``.
     """
-    m = None if mask is None else np.where(mask, 255, 0).astype(np.uint8)
+    m = None if mask is None else _mask_u8(mask)
     if detect_scale > 1:
         f = 1.0 / detect_scale
         small = cv2.resize(gray0, None, fx=f, fy=f, interpolation=cv2.INTER_AREA)

@@ -53,6 +53,45 @@ def test_rays_beyond_the_pinhole_range_are_left_out_not_wrong():
     assert transform is None and not inliers.any()
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_a_rival_motion_is_found_by_the_capped_second_ransac(seed):
+    """The fast estimate's second hypothesis runs only the iterations that find a rival motion
+    holding RIVAL_SHARE of the first one's inliers among its outliers (``rival_iterations``):
+    a rival just above that share, among random outliers, is found and contests the first."""
+    from fisheyemotion import egomotion
+
+    rng = np.random.default_rng(seed)
+    pose0 = camera_pose(rng, height=1.0)
+    pose1 = moved(pose0, [0.8, 0.05, 0.0], yaw_deg=2.0)
+    background = pose0[:3, 3] + rng.uniform([4, -10, -0.9], [25, 10, 5], size=(150, 3))
+    n = int(np.ceil(egomotion.RIVAL_SHARE * 150)) + 8  # an object moving its own way
+    thing = pose0[:3, 3] + rng.uniform([5, -1, -0.5], [7, 1, 0.5], size=(n, 3))
+    r0 = np.concatenate([rays_of(background, pose0), rays_of(thing, pose0)])
+    r1 = np.concatenate([rays_of(background, pose1),
+                         rays_of(thing + [0.0, 1.2, 0.0], pose1)])
+    junk = rng.normal(size=(25, 2, 3))  # outliers of both
+    junk[..., 2] = np.abs(junk[..., 2]) + 1.0
+    junk /= np.linalg.norm(junk, axis=-1, keepdims=True)
+    r0, r1 = np.concatenate([r0, junk[:, 0]]), np.concatenate([r1, junk[:, 1]])
+    first, inliers, second, others = egomotion._two_hypotheses(
+        r0, r1, threshold=egomotion.FAST_THRESHOLD, max_iterations=egomotion.FAST_ITERATIONS,
+        min_iterations=egomotion.MIN_ITERATIONS, second_iterations=egomotion.SECOND_ITERATIONS)
+    assert inliers[:150].mean() > 0.95 and second is not None
+    assert others[150:150 + n].mean() > 0.9
+    assert others.sum() >= egomotion.RIVAL_SHARE * inliers.sum()  # contested
+
+
+def test_rival_iterations_reach_their_confidence():
+    from fisheyemotion.egomotion import MIN_ITERATIONS, RIVAL_SHARE, rival_iterations
+
+    for inliers, rest in ((150, 60), (100, 100), (100, 300), (40, 12), (200, 500)):
+        n = rival_iterations(inliers, rest)
+        w = min(1.0, RIVAL_SHARE * inliers / rest)
+        assert n >= MIN_ITERATIONS and (1 - w ** 5) ** n <= 0.01
+        if n > MIN_ITERATIONS:  # no more than needed
+            assert (1 - w ** 5) ** (n - 1) > 0.01
+
+
 @pytest.fixture(scope="module")
 def frames():
     return synth.render_frames(CAM, SCENE, supersample=1)
