@@ -145,6 +145,13 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
         grays.append(to_gray(seq.frame(k), "frame"))
         g0, g1 = grays.pop(0), grays[-1]
         pose0, pose1 = (moved @ pose for pose in given.pair(k, gap))
+        if k == gap:  # the stream's first pair: its scene model learns from the frames between
+            frames = [(g, moved @ given.anchors[k] @ given.poses[i])
+                      for i, g in enumerate([g0, *grays])]
+            between = None if renderer is None else [
+                np.nan_to_num(renderer.flow(i, gap=1), nan=OUT_OF_VIEW) for i in range(1, k + 1)]
+            for detector in (main, *variants.values()):
+                detector._bootstrap_scene(frames, between)
         if renderer is not None:
             # Where the surface point leaves the camera's domain the exact flow is NaN: carry it
             # out of the image (its cell is then not scored), not to a zero flow.

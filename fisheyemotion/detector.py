@@ -15,6 +15,7 @@ next pair's flow beside the decision.
 from __future__ import annotations
 
 import contextlib
+import itertools
 import warnings
 from collections import deque
 from collections.abc import Iterable, Iterator
@@ -175,6 +176,7 @@ class MotionDetector:
         self._temporal: tuple[NDArray, NDArray] | None = None
         self._history: deque[tuple[NDArray[np.uint8], NDArray[np.float64]]] = deque(
             maxlen=self.params.frame_gap)
+        self._bootstrapped = False
         self._ranges = RangeMemory(self.params.frame_gap + 1)
         # The texture check's cells of the last frames (gray image, cells): a stream's frame is
         # checked when it is the current frame, in the decision, and read when it is the
@@ -319,10 +321,35 @@ class MotionDetector:
         self._observe_ground(gray, world)
         full = len(self._history) == self._history.maxlen
         prev, prev_pose = self._history[0] if full else (None, None)
+        if full:
+            self._bootstrap_scene([(g, q if anchor is None else anchor @ q)
+                                   for g, q in self._history] + [(gray, world)])
         self._history.append((gray, t))
         if prev is None:
             return None
         return prev, gray, prev_pose if anchor is None else anchor @ prev_pose, world
+
+    def _bootstrap_scene(self, frames: list[tuple[NDArray[np.uint8], NDArray]],
+                         flows: list[NDArray[np.float32]] | None = None) -> None:
+        """``params.scene_bootstrap``: before a stream's first pair (``frames``: its gray
+        frames and poses, the previous frame first, the current last), the scene model learns
+        from each consecutive pair between them in turn, each warped by what the pairs before it
+        stored (``flows``: their flows, if measured elsewhere). Once per stream (again after
+        :meth:`reset`); nothing is decided or reported."""
+        if (self._bootstrapped or self.scene is None or not self.params.scene_bootstrap
+                or len(frames) < 3):
+            return
+        self._bootstrapped = True
+        textures = self.params.min_texture > 0
+        for i, ((g0, t0), (g1, t1)) in enumerate(itertools.pairwise(frames)):
+            flow = self._one_flow(g0, g1, t0, t1) if flows is None else flows[i]
+            if textures:  # checked once: for this pair and, kept, for the stream's own
+                cells = self._textured_cells(g0)
+                self._textures.append((g0, cells))
+            self._measure(flow, t0, t1, None, g0, curr=g1, stream=True)
+            if textures:
+                self._textures.append((g0, cells))
+        self._static_flow = None
 
     def _estimated_pose(self, gray: NDArray[np.uint8]) -> NDArray[np.float64]:
         if self._tracker is None:
@@ -344,6 +371,7 @@ class MotionDetector:
         """Forget the stream's previous frames, its temporal state, its scene model and its
         estimated poses."""
         self._history.clear()
+        self._bootstrapped = False
         self._textures.clear()
         self._ranges.clear()
         self._temporal = None

@@ -166,6 +166,12 @@ class Params:
         Grey levels by which the swept range must explain the cell better than the measured one.
     scene_memory : int
         Detections whose static points the scene model keeps.
+    scene_bootstrap : bool
+        Streams only, with a frame gap above 1: when a stream's first pair forms, the scene
+        model first learns from the consecutive pairs between its frames (each warped by what
+        the pairs before it stored), so that the first pair's prior already knows the static
+        structure that is near when the stream starts, where the gap's displacements are too
+        large for the flow method to find from the road/far-field prior alone.
     prior_distance : float
         Metres, for the ego prior's rays that do not meet the road closer than that (the default,
         1 km, stands for infinity: the sky and distant structure move with the rotation only;
@@ -265,6 +271,7 @@ class Params:
     scene_sweep_margin: float = 5.0
     scene_prior: bool = True
     scene_memory: int = 3
+    scene_bootstrap: bool = True
     frame_gap: int = 3
     min_texture: float = 2.0
     temporal_decay: float = 0.3
@@ -322,6 +329,7 @@ class Params:
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {_short(v)}")
         for name in ("depth_both_views", "fb_check", "visibility_check", "scene_prior",
+                     "scene_bootstrap",
                      "ground_contact", "photometric_check", "photometric_arc"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}: expected a bool, got {_short(getattr(self, name))}")
@@ -340,7 +348,8 @@ class Params:
         significance), no ground-contact test (the defaults add some of these, as chosen by
         ``docs/evaluation.md``). The paper does not state its likelihood threshold; this uses
         0.005."""
-        return cls(**{"flow_prior": "none", "scene_prior": False, "ground_contact": False,
+        return cls(**{"flow_prior": "none", "scene_prior": False, "scene_bootstrap": False,
+                      "ground_contact": False,
                       "significance": 0.0, "grow": 0, "extent_reach": 0.0,
                       "photometric_check": False,
                       "fb_check": False,
