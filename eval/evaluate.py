@@ -150,7 +150,8 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
                       for i, g in enumerate([g0, *grays])]
             between = None if renderer is None else [
                 np.nan_to_num(renderer.flow(i, gap=1), nan=OUT_OF_VIEW) for i in range(1, k + 1)]
-            for detector in (main, *variants.values()):
+            between = main._bootstrap_scene(frames, between)
+            for detector in variants.values():  # the main detector's flows, as for the pairs
                 detector._bootstrap_scene(frames, between)
         if renderer is not None:
             # Where the surface point leaves the camera's domain the exact flow is NaN: carry it

@@ -330,19 +330,23 @@ class MotionDetector:
         return prev, gray, prev_pose if anchor is None else anchor @ prev_pose, world
 
     def _bootstrap_scene(self, frames: list[tuple[NDArray[np.uint8], NDArray]],
-                         flows: list[NDArray[np.float32]] | None = None) -> None:
+                         flows: list[NDArray[np.float32]] | None = None
+                         ) -> list[NDArray[np.float32]] | None:
         """``params.scene_bootstrap``: before a stream's first pair (``frames``: its gray
         frames and poses, the previous frame first, the current last), the scene model learns
         from each consecutive pair between them in turn, each warped by what the pairs before it
         stored (``flows``: their flows, if measured elsewhere). Once per stream (again after
-        :meth:`reset`); nothing is decided or reported."""
+        :meth:`reset`); nothing is decided or reported. Returns the flows used (None if it did
+        not run)."""
         if (self._bootstrapped or self.scene is None or not self.params.scene_bootstrap
                 or len(frames) < 3):
-            return
+            return None
         self._bootstrapped = True
         textures = self.params.min_texture > 0
+        used = []
         for i, ((g0, t0), (g1, t1)) in enumerate(itertools.pairwise(frames)):
             flow = self._one_flow(g0, g1, t0, t1) if flows is None else flows[i]
+            used.append(flow)
             if textures:  # checked once: for this pair and, kept, for the stream's own
                 cells = self._textured_cells(g0)
                 self._textures.append((g0, cells))
@@ -350,6 +354,7 @@ class MotionDetector:
             if textures:
                 self._textures.append((g0, cells))
         self._static_flow = None
+        return used
 
     def _estimated_pose(self, gray: NDArray[np.uint8]) -> NDArray[np.float64]:
         if self._tracker is None:
