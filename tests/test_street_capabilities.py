@@ -713,3 +713,36 @@ def test_a_streams_first_pair_is_warped_by_the_structure_its_frames_between_show
     assert errors[True] < 0.1 * errors[False]
     assert flagged[False] > 0.2 and flagged[True] < 0.05
     assert fm.Params().scene_bootstrap and not fm.Params.paper().scene_bootstrap
+
+
+def test_the_documented_no_bootstrap_file_turns_only_it_off_and_bad_values_are_refused():
+    from pathlib import Path
+
+    off = fm.Params.load(Path(__file__).resolve().parents[1] / "data" / "params"
+                         / "no_bootstrap.yaml")
+    assert not off.scene_bootstrap and off.replace(scene_bootstrap=True) == fm.Params()
+    with pytest.raises(ValueError, match="scene_bootstrap: expected a bool"):
+        fm.Params(scene_bootstrap="yes")
+
+
+def test_the_bootstrap_runs_once_per_stream_and_again_after_reset(monkeypatch):
+    """Three consecutive flows before the first pair's, none later; reset() starts over."""
+    r = synth.Renderer(CAM, PLAIN, supersample=1)
+    frames = [r.render(k) for k in range(4)]
+    det = fm.MotionDetector(CAM, roi=r.roi())
+    flows = []
+    one_flow = det._one_flow
+
+    def counted(a, b, pose_a, pose_b):
+        flows.append((pose_a.tobytes(), pose_b.tobytes()))
+        return one_flow(a, b, pose_a, pose_b)
+    monkeypatch.setattr(det, "_one_flow", counted)
+    poses = [f.pose.tobytes() for f in frames]
+    for _ in range(2):
+        flows.clear()
+        for f in frames + frames[:1]:
+            det.apply(f.image, f.pose)
+        assert flows[:4] == [(poses[0], poses[1]), (poses[1], poses[2]), (poses[2], poses[3]),
+                             (poses[0], poses[3])]
+        assert flows[4:] == [(poses[1], poses[0])]  # frame 1 to the repeated frame 0: a pair
+        det.reset()
