@@ -186,6 +186,37 @@ def test_end_to_end_report(sequences, tmp_path):
     assert {"epipolar only", "depth only", "height only", "antiparallel only"} <= set(abl.variant)
 
 
+@pytest.mark.parametrize("params", [FAST, fm.Params(flow="dis", dis_preset="fast", grid=4,
+                                                     min_area=48)],
+                         ids=["gap2-fb", "defaults-gap3"])
+def test_the_evaluation_scores_the_masks_a_users_stream_returns(sequences, params, monkeypatch):
+    """``evaluate_sequence`` runs the detector as ``MotionDetector.apply`` does (the scene
+    model's bootstrap from the frames between the first pair's included): the masks it scores
+    are, to the bit, those a user streaming the same frames and poses gets."""
+    import importlib
+
+    from fisheyemotion.sequence import Sequence
+
+    module = importlib.import_module("fisheyemotion.eval.evaluate")
+    scored = []
+    metrics = module.object_metrics
+
+    def recording(mask, *args, **kwargs):
+        scored.append(mask.copy())
+        return metrics(mask, *args, **kwargs)
+
+    monkeypatch.setattr(module, "object_metrics", recording)
+    path = sequences[1]  # parked cars and poles beside the road from the first frame
+    evaluate_sequence(path, params, ablation=False)
+    seq = Sequence(path)
+    det = fm.MotionDetector(seq.camera, fm.Road(), params=params, roi=seq.roi())
+    streamed = [r.mask for r in (det.apply(seq.frame(k), seq.poses[k]) for k in range(len(seq)))
+                if r is not None]
+    assert len(scored) == len(streamed) == len(seq) - params.frame_gap
+    for a, b in zip(scored, streamed, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_process_pool_equals_serial(sequences):
     serial = evaluate(sequences, FAST, workers=1, progress=False, ablation=False)
     pooled = evaluate(sequences, FAST, workers=2, progress=False, ablation=False)
