@@ -11,8 +11,10 @@ far the prior and the flow are off there, why the scene model's ranges are wrong
 far the scene model's ranges are off on the tuning street's brick wall, what the ground-contact
 test's scene-agreement veto and the arc test cost and buy with the exact flow, whether one
 region statistic could drop the false regions, how far Table 2 moves under negligible, noisy
-and refined poses over several draws, and with the scene model off, and how far a warp prior
-from the true depth, with and without occlusions handled, would go.
+and refined poses over several draws, and with the scene model off, how far a warp prior
+from the true depth, with and without occlusions handled, would go, how far off a stream's
+first pair's prior is with and without the scene-model bootstrap, and the share of pairs with a
+false region by the frame they end at.
 
     .venv/bin/python docs/measurements.py true_depth_prior_bounds   # one of them, by name
 """
@@ -720,6 +722,58 @@ def true_depth_prior_bounds(modes=(None, "prior", "occlusion", "occlusion only",
             print(f"warp prior {mode or 'of the detector (the defaults)'}: {cells}")
     finally:
         module.evaluate_sequence, module.MotionDetector = original, detector
+
+
+def first_pair_prior_error(name: str = "static_world", frames=(3, 4, 5, 6),
+                           bootstrap: bool = False) -> None:
+    """The warp prior's error against the renderer's exact flow, median per surface, for the
+    pairs ending at ``frames`` of a stream with ``Params(scene_bootstrap=bootstrap)``: how far
+    off the prior is for structure already near when the stream starts, and how fast the scene
+    model learns it (docs/evaluation.md, *Scene-model bootstrap*)."""
+    seq = Sequence(SEQUENCES / name)
+    renderer = Renderer(seq.camera, load_scenario(seq.path / "scenario.yaml"), supersample=1)
+    kinds = {int(i): str(k) for i, k in zip(seq.objects.id, seq.objects.kind, strict=True)}
+    grays = _grays(seq)
+    for end in frames:
+        det = fm.MotionDetector(seq.camera, fm.Road(),
+                                params=fm.Params(scene_bootstrap=bootstrap), roi=seq.roi())
+        gap = det.params.frame_gap
+        priors = {}
+        static_prior = det._static_prior
+
+        def recorded(a, b, static_prior=static_prior, priors=priors):
+            out = static_prior(a, b)
+            priors[(a.tobytes(), b.tobytes())] = out[0]
+            return out
+        det._static_prior = recorded
+        for k in range(end + 1):
+            det.apply(grays[k], seq.poses[k])
+        prior = priors[(seq.poses[end - gap].tobytes(), seq.poses[end].tobytes())]
+        exact = renderer.flow(end, gap=gap)
+        ids = renderer.render(end - gap).ids
+        error = np.linalg.norm(prior - exact, axis=-1)
+        cells = []
+        for i in np.unique(ids):
+            surface = (ids == i) & np.isfinite(error)
+            if 0 < i < 65535 and surface.sum() >= 200:
+                cells.append(f"{kinds.get(int(i), 'static')} {i} {np.median(error[surface]):.1f} px")
+        print(f"{name}, pair ending at frame {end}, bootstrap {bootstrap}: " + ", ".join(cells))
+
+
+def false_positive_frames_by_frame(report: Path = SEQUENCES.parent / "report") -> None:
+    """The share of pairs with a false region by the frame they end at (3-6, 7-10, 11-15, then
+    by eights), open road and streets, from an evaluation's ``frames.csv`` (default: ``make
+    demo``'s; Farneback)."""
+    import pandas as pd
+
+    frames = pd.read_csv(Path(report) / "frames.csv")
+    frames = frames[frames.flow == "farneback"]
+    streets = frames.sequence.str.startswith("street")
+    bins = pd.cut(frames.frame, [2, 6, 10, 15, 24, 32, 40, 48])
+    table = frames.assign(group=np.where(streets, "streets", "open road"), bins=bins).pivot_table(
+        index="group", columns="bins", values="fp_frame", aggfunc="mean", observed=True)
+    print(f"{report}: pairs with a false region by the frame they end at\n"
+          + (100 * table).round(0).to_string())
 
 
 if __name__ == "__main__":
