@@ -321,7 +321,7 @@ class MotionDetector:
         self._observe_ground(gray, world)
         full = len(self._history) == self._history.maxlen
         prev, prev_pose = self._history[0] if full else (None, None)
-        if full:
+        if full and not self._bootstrapped:
             self._bootstrap_scene([(g, q if anchor is None else anchor @ q)
                                    for g, q in self._history] + [(gray, world)])
         self._history.append((gray, t))
@@ -347,12 +347,9 @@ class MotionDetector:
         for i, ((g0, t0), (g1, t1)) in enumerate(itertools.pairwise(frames)):
             flow = self._one_flow(g0, g1, t0, t1) if flows is None else flows[i]
             used.append(flow)
-            if textures:  # checked once: for this pair and, kept, for the stream's own
-                cells = self._textured_cells(g0)
-                self._textures.append((g0, cells))
+            if textures:  # checked once: read by this pair and, kept, by the stream's own
+                self._textures.extend([(g0, self._textured_cells(g0))] * 2)
             self._measure(flow, t0, t1, None, g0, curr=g1, stream=True)
-            if textures:
-                self._textures.append((g0, cells))
         self._static_flow = None
         return used
 
