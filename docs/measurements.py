@@ -734,24 +734,23 @@ def first_pair_prior_error(name: str = "static_world", frames=(3, 4, 5, 6),
     renderer = Renderer(seq.camera, load_scenario(seq.path / "scenario.yaml"), supersample=1)
     kinds = {int(i): str(k) for i, k in zip(seq.objects.id, seq.objects.kind, strict=True)}
     grays = _grays(seq)
-    for end in frames:
-        det = fm.MotionDetector(seq.camera, fm.Road(),
-                                params=fm.Params(scene_bootstrap=bootstrap), roi=seq.roi())
-        gap = det.params.frame_gap
-        priors = {}
-        static_prior = det._static_prior
+    det = fm.MotionDetector(seq.camera, fm.Road(), params=fm.Params(scene_bootstrap=bootstrap),
+                            roi=seq.roi())
+    gap = det.params.frame_gap
+    priors = {}
+    static_prior = det._static_prior
 
-        def recorded(a, b, static_prior=static_prior, priors=priors):
-            out = static_prior(a, b)
-            priors[(a.tobytes(), b.tobytes())] = out[0]
-            return out
-        det._static_prior = recorded
-        for k in range(end + 1):
-            det.apply(grays[k], seq.poses[k])
+    def recorded(a, b):
+        out = static_prior(a, b)
+        priors[(a.tobytes(), b.tobytes())] = out[0]
+        return out
+    det._static_prior = recorded
+    for k in range(max(frames) + 1):  # one stream; each pair's prior as its flow used it
+        det.apply(grays[k], seq.poses[k])
+    for end in frames:
         prior = priors[(seq.poses[end - gap].tobytes(), seq.poses[end].tobytes())]
-        exact = renderer.flow(end, gap=gap)
+        error = np.linalg.norm(prior - renderer.flow(end, gap=gap), axis=-1)
         ids = renderer.render(end - gap).ids
-        error = np.linalg.norm(prior - exact, axis=-1)
         cells = []
         for i in np.unique(ids):
             surface = (ids == i) & np.isfinite(error)
