@@ -33,7 +33,7 @@ def track_corners(gray0: NDArray[np.uint8], gray1: NDArray[np.uint8], *,
                   mask: NDArray | None = None, corners: int = 600,
                   min_distance: int = 7, fb_tolerance: float = 0.5,
                   predict: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
-                  detect_scale: int = 1, iterations: int = 20
+                  detect_scale: int = 1, iterations: int = 20, backward: bool = True
                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Corners of ``gray0`` (where ``mask`` is non-zero) and where they are in ``gray1``.
 
@@ -45,11 +45,14 @@ def track_corners(gray0: NDArray[np.uint8], gray1: NDArray[np.uint8], *,
     guess): the tracker starts there, so that large displacements the pyramid cannot reach (the
     road near a fast vehicle) are still tracked.
 
+    ``backward``: each track is tracked back from ``gray1`` and kept only if it returns within
+    ``fb_tolerance`` pixels of its corner (twice the work); without it, every track Lucas-Kanade
+    reports found is kept.
+
     Returns
     -------
     u0, u1 : ndarray, shape (N, 2)
-        Pixels of the tracks that came back within ``fb_tolerance`` pixels when tracked from
-        ``gray1`` to ``gray0``.
+        Pixels of the tracks kept in ``gray0`` and ``gray1``.
     """
     m = None if mask is None else _mask_u8(mask)
     if detect_scale > 1:
@@ -71,7 +74,9 @@ def track_corners(gray0: NDArray[np.uint8], gray1: NDArray[np.uint8], *,
     if predict is None:
         lk = {**_LK, "criteria": criteria}
         fwd, ok1, _ = cv2.calcOpticalFlowPyrLK(gray0, gray1, found, None, **lk)
-        back, ok2, _ = cv2.calcOpticalFlowPyrLK(gray1, gray0, fwd, None, **lk)
+        back, ok2 = found, ok1
+        if backward:
+            back, ok2, _ = cv2.calcOpticalFlowPyrLK(gray1, gray0, fwd, None, **lk)
     else:
         guess = np.asarray(predict(found[:, 0].astype(np.float64)), dtype=np.float64)
         guess = np.where(np.isfinite(guess), guess, found[:, 0])
@@ -82,9 +87,12 @@ def track_corners(gray0: NDArray[np.uint8], gray1: NDArray[np.uint8], *,
         fwd, ok1, _ = cv2.calcOpticalFlowPyrLK(gray0, gray1, found, guess,
                                                flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **guessed)
         # Back with the predicted displacement reversed (not from the corners themselves).
-        back_guess = np.ascontiguousarray(fwd - (guess - found), dtype=np.float32)
-        back, ok2, _ = cv2.calcOpticalFlowPyrLK(gray1, gray0, fwd, back_guess,
-                                                flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **guessed)
+        if backward:
+            back_guess = np.ascontiguousarray(fwd - (guess - found), dtype=np.float32)
+            back, ok2, _ = cv2.calcOpticalFlowPyrLK(gray1, gray0, fwd, back_guess,
+                                                    flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **guessed)
+        else:
+            back, ok2 = found, ok1
     good = (ok1[:, 0] == 1) & (ok2[:, 0] == 1) & (
         np.linalg.norm(back - found, axis=-1)[:, 0] < fb_tolerance)
     return found[good, 0].astype(np.float64), fwd[good, 0].astype(np.float64)

@@ -10,10 +10,12 @@ import pytest
 import fisheyemotion as fm
 from fisheyemotion import synth
 from fisheyemotion.cli import main
-from fisheyemotion.egomotion import PoseTracker, relative_pose
+from fisheyemotion.egomotion import PoseTracker, relative_pose, sampson_errors
 
 from .cameras import tumvi_kb
 from .scenes import camera_pose, moved, random_rotation, rays_of
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 CAM = tumvi_kb(480, 360, 150.0)
 SCENE = synth.parse_scenario({
@@ -41,6 +43,62 @@ def test_relative_pose_of_exact_rays_is_exact():
     assert _angle(truth[:3, :3].T @ transform[:3, :3]) < 1e-4
     t = truth[:3, 3] / np.linalg.norm(truth[:3, 3])
     assert np.degrees(np.arccos(np.clip(t @ transform[:3, 3], -1, 1))) < 1e-3
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1))
+def test_sampson_errors_are_opencvs_sampson_distance(seed):
+    """The epipolar error the guessed pose is judged by is OpenCV's Sampson distance (which
+    returns its square) for E = [t]x R, and 0 for a static point's exact correspondence."""
+    rng = np.random.default_rng(seed)
+    r = random_rotation(rng) if seed % 2 else np.eye(3)
+    t = rng.normal(size=3)
+    transform = np.eye(4)
+    transform[:3, :3], transform[:3, 3] = r, t / np.linalg.norm(t)
+    x0, x1 = rng.uniform(-1, 1, size=(2, 20, 2))
+    tx = np.array([[0, -t[2], t[1]], [t[2], 0, -t[0]], [-t[1], t[0], 0]]) / np.linalg.norm(t)
+    essential = tx @ r
+    expected = [np.sqrt(cv2.sampsonDistance(np.append(a, 1.0)[:, None], np.append(b, 1.0)[:, None],
+                                            essential)) for a, b in zip(x0, x1, strict=True)]
+    np.testing.assert_allclose(sampson_errors(x0, x1, transform), expected, rtol=1e-9, atol=1e-12)
+    points = np.column_stack([x0, np.ones(20)]) * rng.uniform(2, 30, size=(20, 1))
+    seen = points @ r.T + transform[:3, 3]
+    exact = seen[:, :2] / seen[:, 2:]
+    np.testing.assert_allclose(sampson_errors(x0, exact, transform), 0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("guess_off_deg", [0.0, 0.3, 40.0])
+def test_a_guessed_motion_is_refined_to_the_images_or_left_for_ransac(guess_off_deg, monkeypatch):
+    """A stream's last step as the guess: near the truth (0.3 deg off, a turn's change over one
+    frame) it is refined to the motion (to within the 0.003 deg that the outliers within its
+    tolerance pull the robust loss); far off (40 deg) too few correspondences are its inliers
+    and RANSAC finds the motion as without a guess. A fifth of the correspondences are outliers
+    either way."""
+    rng = np.random.default_rng(7)
+    pose0 = camera_pose(rng, height=1.0)
+    pose1 = moved(pose0, [0.8, 0.1, 0.0], yaw_deg=3.0)
+    points = pose0[:3, 3] + rng.uniform([2, -8, -0.9], [20, 8, 4], size=(250, 3))
+    rays0, rays1 = rays_of(points, pose0), rays_of(points, pose1)
+    wrong = rng.random(250) < 0.2
+    rays1[wrong] = rays_of(points[wrong] + rng.normal(scale=0.8, size=(wrong.sum(), 3)), pose1)
+    truth = np.linalg.inv(pose1) @ pose0
+    guess = truth.copy()
+    turn = cv2.Rodrigues(np.radians(guess_off_deg) * np.array([0.0, 1.0, 0.0]))[0]
+    guess[:3, :3] = turn @ truth[:3, :3]
+    guess[:3, 3] /= np.linalg.norm(guess[:3, 3])
+    import poselib
+
+    sampled = []
+    estimate = poselib.estimate_relative_pose
+    monkeypatch.setattr(poselib, "estimate_relative_pose",
+                        lambda *a, **k: sampled.append(1) or estimate(*a, **k))
+    transform, inliers = relative_pose(rays0, rays1, threshold=2e-3, guess=guess,
+                                       max_iterations=500, min_iterations=30)
+    assert bool(sampled) == (guess_off_deg > 1)  # RANSAC only where the guess is far off
+    assert _angle(truth[:3, :3].T @ transform[:3, :3]) < 5e-3
+    t = truth[:3, 3] / np.linalg.norm(truth[:3, 3])
+    assert np.degrees(np.arccos(np.clip(t @ transform[:3, 3], -1, 1))) < 0.05
+    assert inliers[~wrong].mean() > 0.95 and inliers[wrong].mean() < 0.2
 
 
 def test_rays_beyond_the_pinhole_range_are_left_out_not_wrong():
