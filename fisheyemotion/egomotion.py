@@ -215,8 +215,7 @@ def relative_pose(rays0: NDArray[np.float64], rays1: NDArray[np.float64], *,
     if mask.sum() < 8:
         return None, inliers
     inliers[np.flatnonzero(use)[mask]] = True
-    transform = _transform(pose)
-    return (None if transform is None else transform), inliers
+    return _transform(pose), inliers
 
 
 def road_scale(rays0: NDArray[np.float64], rays1: NDArray[np.float64],

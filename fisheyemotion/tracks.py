@@ -87,12 +87,11 @@ def track_corners(gray0: NDArray[np.uint8], gray1: NDArray[np.uint8], *,
         fwd, ok1, _ = cv2.calcOpticalFlowPyrLK(gray0, gray1, found, guess,
                                                flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **guessed)
         # Back with the predicted displacement reversed (not from the corners themselves).
+        back, ok2 = found, ok1
         if backward:
             back_guess = np.ascontiguousarray(fwd - (guess - found), dtype=np.float32)
             back, ok2, _ = cv2.calcOpticalFlowPyrLK(gray1, gray0, fwd, back_guess,
                                                     flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **guessed)
-        else:
-            back, ok2 = found, ok1
     good = (ok1[:, 0] == 1) & (ok2[:, 0] == 1) & (
         np.linalg.norm(back - found, axis=-1)[:, 0] < fb_tolerance)
     return found[good, 0].astype(np.float64), fwd[good, 0].astype(np.float64)

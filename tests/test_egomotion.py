@@ -6,6 +6,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import fisheyemotion as fm
 from fisheyemotion import synth
@@ -14,8 +16,6 @@ from fisheyemotion.egomotion import PoseTracker, relative_pose, sampson_errors
 
 from .cameras import tumvi_kb
 from .scenes import camera_pose, moved, random_rotation, rays_of
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 CAM = tumvi_kb(480, 360, 150.0)
 SCENE = synth.parse_scenario({
