@@ -775,6 +775,68 @@ def false_positive_frames_by_frame(report: Path = SEQUENCES.parent / "report") -
           + (100 * table).round(0).to_string())
 
 
+
+def epipolar_significance_real(ks=(0.0, 2.0, 3.0, 4.0), position_sigmas=(0.0, 0.002)) -> None:
+    """The real Aria clips with ``Params(frame_gap=1, epipolar_significance=k,
+    position_sigma=s)``: the kitchen's static background and utensils flagged, the office's
+    share outside the largest region; and the spread of the kitchen's static cells' epipolar
+    deviation in sigmas of their error, with and without the poses' (docs/evaluation.md,
+    *Epipolar significance*)."""
+    import cv2
+    from fisheyemotion.eval.real import TOLERANCE_PX, find_clips, run_real
+
+    from fisheyemotion import calib
+    from fisheyemotion.inputs import ImageFolder
+    from fisheyemotion.poses import PoseMatcher, read_poses
+
+    data = SEQUENCES.parents[2]
+    for k, s in ((k, s) for s in position_sigmas for k in ks):
+        table, _ = run_real(data, fm.Params(frame_gap=1, epipolar_significance=k,
+                                            position_sigma=s))
+        for _, row in table.iterrows():
+            moving = row["ground truth: moving objects' pixels flagged %"]
+            print(f"k = {k}, position_sigma = {s}: {row['clip']} / {row['camera']}: "
+                  "outside the largest region "
+                  f"{row['outside the largest region %']:.2f} %, ground truth static / moving "
+                  f"{row['ground truth: static flagged %']:.2f} / "
+                  f"{moving:.0f} %")
+    seen = {}
+    with_significance = fm.MotionDetector._with_significance
+
+    def recorded(self, res, sigma, likelihood):
+        if sigma.ndim == 2:
+            seen["z"] = res.epipolar / sigma
+        return with_significance(self, res, sigma, likelihood)
+    fm.MotionDetector._with_significance = recorded
+    try:
+        for clip, s in ((c, s) for s in position_sigmas for c in find_clips(data)):
+            truth_dir = clip.folder.parent / "ground_truth" / "moving" / clip.camera
+            if not truth_dir.is_dir():
+                continue
+            cam = calib.load(clip.calibration, clip.camera)
+            params = fm.Params(frame_gap=1, position_sigma=s).for_camera(cam)
+            det = fm.MotionDetector(cam, fm.Road.unknown(), params)
+            poses = PoseMatcher(read_poses(clip.poses))
+            for f in ImageFolder(clip.folder):
+                seen.clear()
+                det.apply(f.image, poses(f.index, f.name, f.stamp)[1])
+                if not (truth_dir / f.name).is_file() or "z" not in seen:
+                    continue
+                truth = cv2.imread(str(truth_dir / f.name), cv2.IMREAD_GRAYSCALE)
+                size = 2 * TOLERANCE_PX + 1
+                near = cv2.dilate((truth == 255).astype(np.uint8), np.ones((size, size), np.uint8))
+                g = params.grid
+                rows, cols = seen["z"].shape
+                static = ((truth == 0) & (near == 0))[:rows * g, :cols * g]
+                static = static.reshape(rows, g, cols, g).all(axis=(1, 3))
+                z = seen["z"][static & np.isfinite(seen["z"])]
+                print(f"{clip.camera} {f.name}, position_sigma = {s}: static cells' "
+                      "epipolar deviation / sigma, "
+                      f"percentiles 50 / 90 / 99: "
+                      + " / ".join(f"{q:.2f}" for q in np.percentile(z, [50, 90, 99])))
+    finally:
+        fm.MotionDetector._with_significance = with_significance
+
 if __name__ == "__main__":
     if not SEQUENCES.is_dir():
         sys.exit(f"{SEQUENCES}: run 'make demo' first")

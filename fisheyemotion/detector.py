@@ -61,7 +61,7 @@ from .range_consistency import RangeMemory
 from .refinement import PoseRefiner
 from .road import Road
 from .segment import segment_cells
-from .significance import cell_sigma, pixel_angle
+from .significance import cell_sigma, pixel_angle, pose_sigma
 from .static_scene import TRIANGULATION_PARALLAX, StaticScene, triangulate_range, world_points
 
 #: Share of the image flagged moving above which a given road (or the poses) is suspect.
@@ -521,11 +521,12 @@ class MotionDetector:
             static_flow = self._static_flow_for(t0, t1)
         likelihood = res.likelihood
         sigma = None
-        if (p.significance > 0 or (p.ground_contact and self.road.known)) \
-                and not res.static_camera:
-            sigma = cell_sigma(flow, p.grid, self._cell_pixel_angle(), floor=p.flow_sigma,
-                               mean=cell_flow)
-        if p.significance > 0 and not res.static_camera:
+        significant = p.significance > 0 or p.epipolar_significance > 0
+        if (significant or (p.ground_contact and self.road.known)) and not res.static_camera:
+            sigma = np.hypot(cell_sigma(flow, p.grid, self._cell_pixel_angle(),
+                                        floor=p.flow_sigma, mean=cell_flow),
+                             pose_sigma(self._rays0, rays1, t0, t1, p.position_sigma))
+        if significant and not res.static_camera:
             likelihood = self._with_significance(res, sigma, likelihood)
         keep_scene = stream and self.scene is not None
         contact = p.ground_contact and self.road.known
@@ -620,7 +621,7 @@ class MotionDetector:
                                     at - measured_at, measured)
         on_arc = constraints(rays0, arc, t0, t1, road=road, params=p)
         likelihood = on_arc.likelihood
-        if p.significance > 0 and sigma is not None:
+        if sigma is not None and (p.significance > 0 or p.epipolar_significance > 0):
             likelihood = self._with_significance(on_arc, sigma[r, c], likelihood)
         with np.errstate(invalid="ignore"):
             scored = likelihood > p.threshold
@@ -730,14 +731,18 @@ class MotionDetector:
         return provisional_road(pose, pose_b, self.ground.camera_height)
 
     def _with_significance(self, res: ConstraintResult, sigma, likelihood) -> NDArray:
-        """The likelihood raised where the height or depth deviation is significant: at
-        ``params.significance`` flow-error sigmas a cell reaches the threshold
-        (:mod:`fisheyemotion.significance`; ``sigma``: the cells' angular flow error)."""
+        """The likelihood raised where a deviation is significant: at ``params.significance``
+        flow-error sigmas of height or depth, or ``params.epipolar_significance`` of the
+        epipolar deviation, a cell reaches the threshold (:mod:`fisheyemotion.significance`;
+        ``sigma``: the cells' angular flow error; a scale of 0 leaves that term raw)."""
         p = self.params
+        z = np.full(likelihood.shape, np.nan)
         with np.errstate(invalid="ignore", divide="ignore"):
-            z = np.fmax(res.height, res.depth) / sigma
-        return np.fmax(likelihood, np.where(np.isfinite(z), p.threshold * z / p.significance,
-                                            np.nan))
+            if p.significance > 0:
+                z = np.fmax(res.height, res.depth) / (sigma * p.significance)
+            if p.epipolar_significance > 0:
+                z = np.fmax(z, res.epipolar / (sigma * p.epipolar_significance))
+        return np.fmax(likelihood, np.where(np.isfinite(z), p.threshold * z, np.nan))
 
     def _explain_standing(self, res: ConstraintResult, likelihood, valid, ranges, range_error,
                           sigma, pose0) -> tuple[NDArray, NDArray[np.bool_]]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import json
 import math
 from dataclasses import dataclass, field
@@ -81,8 +82,23 @@ class Params:
         a static scene once the flow's error is accounted for, so a significant value is motion
         even near the epipole, where raw angles are tiny (a preceding car). 0 keeps the paper's
         raw angles only.
+    epipolar_significance : float
+        A cell whose epipolar deviation is this many flow-error sigmas reaches the threshold
+        too, as ``significance`` does for height and depth (a pedestrian crossing near the
+        epipole, or slowly, deviates from its arc by less than the raw threshold but by many of
+        its flow's sigmas; the sigmas include the poses' error, ``position_sigma``). 0 keeps the
+        epipolar term's raw angle only (``Params.paper()``;
+        ``data/params/no_epipolar_significance.yaml``). Chosen on the tuning street
+        (docs/evaluation.md, *Epipolar significance*).
     flow_sigma : float
         Pixels: the flow's error on a well-measured cell (the floor of the error model).
+    position_sigma : float
+        The given poses' position error between a pair's frames, in the poses' units (metres):
+        the direction of travel is known to ``position_sigma / baseline`` radians, an error the
+        significance's model adds to the flow's (:func:`fisheyemotion.significance.pose_sigma`;
+        it matters where the baseline is millimetres, as a head-mounted camera's between 30-Hz
+        frames; 2 mm, a VIO's error over a frame pair). Raise it for odometry whose steps are off
+        by a share of their length.
     pose_refinement : {'off', 'on', 'auto'}
         Streams with given poses: the rotation and the direction of travel between consecutive
         frames are also estimated from the images (:mod:`fisheyemotion.egomotion`); ``on``
@@ -252,7 +268,9 @@ class Params:
     flow_prior: str = "warp"
     prior_distance: float = 1000.0
     significance: float = 3.0
+    epipolar_significance: float = 2.0
     flow_sigma: float = 0.25
+    position_sigma: float = 0.002
     ground_contact: bool = True
     grow: int = 0
     extent_reach: float = 0.5
@@ -303,7 +321,8 @@ class Params:
                      "contact_arc", "range_consistency", "scene_sweep", "scene_sweep_margin",
                      "extent_reach", "extent_static",
                      "photometric_margin", "photometric_tolerance", "photometric_search",
-                     "significance", "flow_sigma", "refine_tolerance"):
+                     "significance", "epipolar_significance", "flow_sigma", "position_sigma",
+                     "refine_tolerance"):
             v = getattr(self, name)
             if not _finite(v) or v < 0:
                 raise ValueError(f"{name}: expected a finite number >= 0, got {_short(v)}")
@@ -350,7 +369,8 @@ class Params:
         0.005."""
         return cls(**{"flow_prior": "none", "scene_prior": False, "scene_bootstrap": False,
                       "ground_contact": False,
-                      "significance": 0.0, "grow": 0, "extent_reach": 0.0,
+                      "significance": 0.0, "epipolar_significance": 0.0, "grow": 0,
+                      "extent_reach": 0.0,
                       "photometric_check": False,
                       "fb_check": False,
                       "frame_gap": 1, "min_texture": 0.0,
@@ -394,8 +414,10 @@ class Params:
         known = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(values) - known)
         if unknown:
-            raise ValueError(f"params: unknown key(s) {_short(unknown)}; expected among "
-                             f"{sorted(known)}")
+            close = sorted({m for k in unknown[:20] for m in difflib.get_close_matches(k, known)})
+            hint = (f"; did you mean {close}?" if close
+                    else "; expected the fields of fisheyemotion.Params (docs/api.md)")
+            raise ValueError(f"params: unknown key(s) {_short(unknown)}{hint}")
         values = dict(values)
         if "weights" in values and isinstance(values["weights"], list):
             values["weights"] = tuple(values["weights"])

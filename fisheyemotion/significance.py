@@ -14,13 +14,29 @@ cell's flow makes it a significance (a z-score, after Klappstein et al., IV 2009
 occlusion boundary or a poorly matched texture has discordant pixel flows); ``alpha_cell`` is
 the camera's angle per pixel at the cell (it shrinks towards a fisheye's rim).
 
+The poses are measured too. A position error ``sigma_x`` over a baseline ``b`` turns the
+direction of travel by about ``sigma_t = sigma_x / b`` radians, which tilts a cell's epipolar
+great circle (through the epipole and the cell's ray) by ``sigma_t / sin(theta)``, ``theta``
+the ray's angle from the direction of travel; the static correspondence, ``phi`` (the
+parallax) along that circle from the ray, then moves off it by
+
+    sigma_pose = sigma_t * sin(phi) / sin(theta),
+
+which the cell's error adds in quadrature (:func:`pose_sigma`). ``sin(phi) / sin(theta)`` is at
+most about ``b / distance``, so the term matters where the baseline is short and the scene near:
+a head-mounted camera's 2-3 mm between 30-Hz frames with millimetre poses (the direction of
+travel known to tens of degrees) against a car's 1.4 m between frames 3 apart.
+
 The detector uses significance for the positive-height and positive-depth terms: on a static
 scene these two are quiet once the flow's error is accounted for (a static point can only
 violate them through flow error), so a significant value there is motion even near the epipole
--- a preceding car that the raw angles never flag. The epipolar and anti-parallel terms keep
-their raw angles: flow errors that are wrong but self-consistent (repeated textures) and static
-structure above the road (the anti-parallel ambiguity) make them large on static cells whatever
-the error model (``docs/evaluation.md``).
+-- a preceding car that the raw angles never flag. The epipolar deviation is counted in sigmas
+too (``Params.epipolar_significance``, a lower bar): a pedestrian crossing slowly or far ahead
+leaves its arc by a fraction of the raw threshold but by several of its flow's sigmas; that
+needs the poses' error in the model (below), or a head-mounted camera's millimetre baselines
+flag the near static scene (``docs/evaluation.md``, *Epipolar significance*). The anti-parallel
+term keeps its raw angle: static structure above the road (the anti-parallel ambiguity) makes
+it large on static cells whatever the error model.
 """
 
 from __future__ import annotations
@@ -31,7 +47,7 @@ from numpy.typing import NDArray
 from .calib.base import CameraModel
 from .flow import grid_average
 
-__all__ = ["cell_sigma", "pixel_angle"]
+__all__ = ["cell_sigma", "pixel_angle", "pose_sigma"]
 
 
 def pixel_angle(camera: CameraModel, pixels: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -76,3 +92,39 @@ def cell_sigma(flow: NDArray[np.float32], grid: int, angle: NDArray[np.float64],
     var = np.empty(mean.shape[:2])
     cell_variance(np.ascontiguousarray(flow), int(grid), np.ascontiguousarray(mean), var)
     return np.sqrt(floor * floor + var) * angle
+
+
+def pose_sigma(rays0: NDArray[np.float64], rays1: NDArray[np.float64], pose0: NDArray[np.float64],
+               pose1: NDArray[np.float64], position_sigma: float) -> NDArray[np.float64]:
+    """Angular deviation from the epipolar arc that the poses' position error explains.
+
+    ``sigma_pose = min(1, position_sigma / b) * sin(phi) / sin(theta)``: ``b`` the baseline,
+    ``phi`` the angle between the two rays in the world frame (the parallax), ``theta`` the
+    first ray's angle from the direction of travel (module docstring).
+
+    Parameters
+    ----------
+    rays0, rays1 : ndarray, shape (..., 3)
+        Unit rays of the cells in the first and second camera's frames.
+    pose0, pose1 : ndarray, shape (4, 4)
+        ``world_from_cam`` of the two frames.
+    position_sigma : float
+        The poses' position error between the two frames, in the poses' units.
+
+    Returns
+    -------
+    ndarray, shape (...)
+        Radians; NaN where a ray is not finite, 0 for a baseline of 0 or ``position_sigma`` 0.
+    """
+    baseline = pose1[:3, 3] - pose0[:3, 3]
+    b = float(np.linalg.norm(baseline))
+    if b == 0.0 or position_sigma == 0.0:
+        return np.where(np.isfinite(rays0).all(-1) & np.isfinite(rays1).all(-1), 0.0, np.nan)
+    turn = min(1.0, position_sigma / b)
+    # In the first camera's frame: |p x q|^2 = 1 - (p . q)^2 for unit rays.
+    q = rays1 @ (pose0[:3, :3].T @ pose1[:3, :3]).T
+    cos_phi = np.einsum("...i,...i", rays0, q)
+    cos_theta = rays0 @ (pose0[:3, :3].T @ baseline / b)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return turn * np.sqrt(np.maximum(1.0 - cos_phi * cos_phi, 0.0)
+                              / (1.0 - cos_theta * cos_theta))

@@ -153,7 +153,7 @@ def test_bad_camera_and_params():
         fm.MotionDetector("kb")
     with pytest.raises(ValueError, match="grid"):
         fm.Params(grid=0)
-    with pytest.raises(ValueError, match="unknown key.*gird"):
+    with pytest.raises(ValueError, match=r"unknown key.*gird.*did you mean \['grid'\]"):
         fm.Params.from_dict({"gird": 5})
     with pytest.raises(ValueError, match="flow"):
         fm.Params(flow="raft")

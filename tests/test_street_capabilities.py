@@ -14,7 +14,7 @@ from fisheyemotion import synth
 from fisheyemotion.flow import grid_gather, grid_transfer
 from fisheyemotion.ground_contact import contact_ratios, standing_regions
 from fisheyemotion.prior import EgoFlowPrior
-from fisheyemotion.significance import cell_sigma, pixel_angle
+from fisheyemotion.significance import cell_sigma, pixel_angle, pose_sigma
 from fisheyemotion.static_scene import StaticScene, triangulate_range
 
 from .cameras import ALL_CAMERAS, CAMERA_IDS, tumvi_kb
@@ -321,6 +321,118 @@ def test_cell_sigma_grows_with_discordant_flow():
     s = cell_sigma(flow, 5, angle, floor=0.25)
     np.testing.assert_allclose(s[:2], 0.25 * 0.01, rtol=1e-6)
     assert (s[2:] > 5 * 0.25 * 0.01).all()
+
+
+def _rotation(rng):
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    q = q * np.sign(np.diag(r))
+    return q if np.linalg.det(q) > 0 else -q
+
+
+@given(st.integers(0, 2**32 - 1))
+@settings(max_examples=25, deadline=None)
+def test_pose_sigma_is_the_arc_deviation_a_turned_direction_of_travel_gives(seed):
+    """Static points seen with the second position off by ``delta * b`` across the direction of
+    travel: each deviates from its epipolar arc by pose_sigma times the share of the offset
+    along its epipolar plane's normal (first order), never more."""
+    rng = np.random.default_rng(seed)
+    b, delta = 0.003, 1e-4
+    r0, r1 = _rotation(rng), _rotation(rng)
+    c0 = rng.normal(size=3)
+    travel = rng.normal(size=3)
+    travel /= np.linalg.norm(travel)
+    points = rng.normal(size=(200, 3))
+    points /= np.linalg.norm(points, axis=1, keepdims=True)
+    points = points[np.abs(points @ travel) < np.cos(np.radians(15))]  # off the epipoles
+    world = c0 + points * rng.uniform(0.3, 3.0, size=(len(points), 1))
+    rays0 = (world - c0) @ r0
+    rays1 = (world - c0 - b * travel) @ r1
+    rays0 /= np.linalg.norm(rays0, axis=1, keepdims=True)
+    rays1 /= np.linalg.norm(rays1, axis=1, keepdims=True)
+    across = np.cross(travel, rng.normal(size=3))
+    across /= np.linalg.norm(across)
+    pose0, pose1 = np.eye(4), np.eye(4)
+    pose0[:3, :3], pose0[:3, 3] = r0, c0
+    pose1[:3, :3], pose1[:3, 3] = r1, c0 + b * (travel + delta * across)  # the given, off
+    xi = fm.constraints(rays0, rays1, pose0, pose1).epipolar
+    sigma = pose_sigma(rays0, rays1, pose0, pose1, delta * b)
+    normals = np.cross(travel, points)
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    np.testing.assert_allclose(xi, sigma * np.abs(normals @ across), rtol=0.02, atol=1e-12)
+    assert (xi <= 1.02 * sigma).all()
+    assert (pose_sigma(rays0, rays1, pose0, pose1, 0.0) == 0).all()
+    assert (pose_sigma(rays0, rays1, pose0, pose1, 1.0) >= pose_sigma(
+        rays0, rays1, pose0, pose1, 0.5 * b)).all()  # at most a right angle's turn
+
+
+def test_the_poses_error_keeps_a_millimetre_baseline_from_flagging_near_static_cells():
+    """A head-mounted camera's 3 mm between frames, a table 0.5 m away, the direction of travel
+    given 20 deg off (0.8 mm from the images' view): with the flow's error alone the table's
+    arc deviations are many sigmas, with the poses' 2 mm they are not."""
+    rng = np.random.default_rng(3)
+    travel = np.array([1.0, 0.0, 0.0])
+    given = np.array([np.cos(np.radians(20)), np.sin(np.radians(20)), 0.0])
+    rays0 = rng.normal(size=(500, 3)) + [0.0, 0.0, 2.0]
+    rays0 /= np.linalg.norm(rays0, axis=1, keepdims=True)
+    world = 0.5 * rays0
+    rays1 = world - 0.003 * travel
+    rays1 /= np.linalg.norm(rays1, axis=1, keepdims=True)
+    pose0, pose1 = np.eye(4), np.eye(4)
+    pose1[:3, 3] = 0.003 * given
+    xi = fm.constraints(rays0, rays1, pose0, pose1).epipolar
+    flow_only = 0.25 * 0.003  # a quarter pixel at 3 mrad per pixel
+    sigma = np.hypot(flow_only, pose_sigma(rays0, rays1, pose0, pose1, 0.002))
+    assert np.percentile(xi / flow_only, 90) > 2
+    assert (xi / sigma < 2).all()
+
+
+@pytest.mark.parametrize("k", [1.0, 2.0, 3.5])
+def test_epipolar_deviation_reaches_the_threshold_at_its_significance(k):
+    from types import SimpleNamespace
+
+    det = fm.MotionDetector(CAM, params=fm.Params(epipolar_significance=k, significance=0.0))
+    sigma = np.array([0.001, 0.002, 0.004, np.nan])
+    epipolar = k * sigma * np.array([0.5, 1.0, 2.0, 1.0])
+    zero = np.zeros(4)
+    res = SimpleNamespace(epipolar=epipolar, height=zero, depth=zero)
+    raised = det._with_significance(res, sigma, zero)
+    t = det.params.threshold
+    np.testing.assert_allclose(raised, [0.5 * t, t, 2 * t, 0.0])  # unknown sigma: unchanged
+    off = fm.MotionDetector(CAM, params=fm.Params(epipolar_significance=0.0, significance=0.0))
+    np.testing.assert_array_equal(off._with_significance(res, sigma, zero), zero)
+
+
+def test_epipolar_significance_finds_a_slow_distant_pedestrian():
+    """A pedestrian 12 m ahead walking at 1.5 km/h deviates from its epipolar arc by less than
+    the raw threshold, but by several of its (exact) flow's sigmas."""
+    scenario = synth.parse_scenario({
+        "name": "walker", "frames": 4, "ego": {"speed_kmh": 25},
+        "camera": {"position": [2, 0, 1.0], "pitch_deg": 15},
+        "objects": [{"id": 1, "kind": "pedestrian", "category": "crossing", "start": [12, -2],
+                     "heading_deg": 90, "speed_kmh": 1.5}]})
+    cam = tumvi_kb(640, 480, 200.0)
+    renderer = synth.Renderer(cam, scenario)
+    f0, f3 = renderer.render(0), renderer.render(3)
+    flow = np.nan_to_num(renderer.flow(3, gap=3))
+    obj = f3.moving > 0
+    masks = {k: fm.MotionDetector(cam, params=fm.Params(epipolar_significance=k),
+                                  roi=renderer.roi()).detect_flow(flow, f0.pose, f3.pose).mask > 0
+             for k in (0.0, 2.0)}
+    assert not masks[0.0].any()                  # raw angles: not found
+    assert masks[2.0][obj].mean() > 0.3          # measured 0.55
+    assert not (masks[2.0] & ~obj).any()
+
+
+def test_the_documented_no_epipolar_significance_file_turns_only_it_off():
+    from pathlib import Path
+
+    off = fm.Params.load(Path(__file__).resolve().parents[1] / "data" / "params"
+                         / "no_epipolar_significance.yaml")
+    assert off.epipolar_significance == 0.0 and fm.Params().epipolar_significance == 2.0
+    assert off.replace(epipolar_significance=2.0) == fm.Params()
+    assert fm.Params.paper().epipolar_significance == 0.0
+    with pytest.raises(ValueError, match="epipolar_significance: expected a finite number"):
+        fm.Params(epipolar_significance=-1.0)
 
 
 # ---- growth to the object's extent -----------------------------------------------------------
