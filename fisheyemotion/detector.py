@@ -522,22 +522,26 @@ class MotionDetector:
         likelihood = res.likelihood
         sigma = None
         significant = p.significance > 0 or p.epipolar_significance > 0
-        if (significant or (p.ground_contact and self.road.known)) and not res.static_camera:
-            sigma = np.hypot(cell_sigma(flow, p.grid, self._cell_pixel_angle(),
-                                        floor=p.flow_sigma, mean=cell_flow),
-                             pose_sigma(self._rays0, rays1, t0, t1, p.position_sigma))
-        if significant and not res.static_camera:
-            likelihood = self._with_significance(res, sigma, likelihood)
         keep_scene = stream and self.scene is not None
         contact = p.ground_contact and self.road.known
+        if (significant or contact or keep_scene) and not res.static_camera:
+            # One triangulation for all: its parallax for the poses' error, every range for the
+            # contact test, however little parallax it has; the scene model and the three views
+            # use well-conditioned ones only.
+            ranges, _, parallax = triangulate_range(self._rays0, rays1, t0, t1,
+                                                    far=p.prior_distance, with_parallax=True)
+        if (significant or contact) and not res.static_camera:
+            sigma = cell_sigma(flow, p.grid, self._cell_pixel_angle(), floor=p.flow_sigma,
+                               mean=cell_flow)
+            pose = pose_sigma(self._rays0, parallax, t0, t1, p.position_sigma)
+            sigma *= sigma
+            sigma += pose * pose
+            np.sqrt(sigma, out=sigma)
+        if significant and not res.static_camera:
+            likelihood = self._with_significance(res, sigma, likelihood)
         three = (p.range_consistency > 0 and stream and gray is not None and curr is not None
                  and sigma is not None)
         if (keep_scene or contact or three) and not res.static_camera:
-            # One triangulation for all: every range counts for the contact test, however
-            # little parallax it has; the scene model and the three views use well-conditioned
-            # ones only.
-            ranges, _, parallax = triangulate_range(self._rays0, rays1, t0, t1,
-                                                    far=p.prior_distance, with_parallax=True)
             with np.errstate(invalid="ignore", divide="ignore"):
                 range_error = sigma / parallax if sigma is not None else None  # d(lambda)/lambda
                 conditioned = parallax >= np.sin(TRIANGULATION_PARALLAX)

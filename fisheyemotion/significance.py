@@ -94,8 +94,9 @@ def cell_sigma(flow: NDArray[np.float32], grid: int, angle: NDArray[np.float64],
     return np.sqrt(floor * floor + var) * angle
 
 
-def pose_sigma(rays0: NDArray[np.float64], rays1: NDArray[np.float64], pose0: NDArray[np.float64],
-               pose1: NDArray[np.float64], position_sigma: float) -> NDArray[np.float64]:
+def pose_sigma(rays0: NDArray[np.float64], parallax: NDArray[np.float64],
+               pose0: NDArray[np.float64], pose1: NDArray[np.float64],
+               position_sigma: float) -> NDArray[np.float64]:
     """Angular deviation from the epipolar arc that the poses' position error explains.
 
     ``sigma_pose = min(1, position_sigma / b) * sin(phi) / sin(theta)``: ``b`` the baseline,
@@ -104,8 +105,11 @@ def pose_sigma(rays0: NDArray[np.float64], rays1: NDArray[np.float64], pose0: ND
 
     Parameters
     ----------
-    rays0, rays1 : ndarray, shape (..., 3)
-        Unit rays of the cells in the first and second camera's frames.
+    rays0 : ndarray, shape (..., 3)
+        Unit rays of the cells in the first camera's frame.
+    parallax : ndarray, shape (...)
+        ``sin(phi)``, as :func:`fisheyemotion.static_scene.triangulate_range` gives it with
+        ``with_parallax=True``.
     pose0, pose1 : ndarray, shape (4, 4)
         ``world_from_cam`` of the two frames.
     position_sigma : float
@@ -114,17 +118,16 @@ def pose_sigma(rays0: NDArray[np.float64], rays1: NDArray[np.float64], pose0: ND
     Returns
     -------
     ndarray, shape (...)
-        Radians; NaN where a ray is not finite, 0 for a baseline of 0 or ``position_sigma`` 0.
+        Radians; NaN where the parallax is, 0 for a baseline of 0 or ``position_sigma`` 0.
     """
     baseline = pose1[:3, 3] - pose0[:3, 3]
     b = float(np.linalg.norm(baseline))
     if b == 0.0 or position_sigma == 0.0:
-        return np.where(np.isfinite(rays0).all(-1) & np.isfinite(rays1).all(-1), 0.0, np.nan)
-    turn = min(1.0, position_sigma / b)
-    # In the first camera's frame: |p x q|^2 = 1 - (p . q)^2 for unit rays.
-    q = rays1 @ (pose0[:3, :3].T @ pose1[:3, :3]).T
-    cos_phi = np.einsum("...i,...i", rays0, q)
-    cos_theta = rays0 @ (pose0[:3, :3].T @ baseline / b)
+        return parallax * 0.0
+    travel = pose0[:3, :3].T @ (baseline / b)  # in the first camera's frame
+    cos_theta = rays0 @ travel
+    cos_theta *= cos_theta
+    np.subtract(1.0, cos_theta, out=cos_theta)  # sin(theta)^2
+    np.sqrt(cos_theta, out=cos_theta)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return turn * np.sqrt(np.maximum(1.0 - cos_phi * cos_phi, 0.0)
-                              / (1.0 - cos_theta * cos_theta))
+        return min(1.0, position_sigma / b) * parallax / cos_theta

@@ -355,14 +355,15 @@ def test_pose_sigma_is_the_arc_deviation_a_turned_direction_of_travel_gives(seed
     pose0[:3, :3], pose0[:3, 3] = r0, c0
     pose1[:3, :3], pose1[:3, 3] = r1, c0 + b * (travel + delta * across)  # the given, off
     xi = fm.constraints(rays0, rays1, pose0, pose1).epipolar
-    sigma = pose_sigma(rays0, rays1, pose0, pose1, delta * b)
+    parallax = triangulate_range(rays0, rays1, pose0, pose1, far=1e6, with_parallax=True)[2]
+    sigma = pose_sigma(rays0, parallax, pose0, pose1, delta * b)
     normals = np.cross(travel, points)
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
     np.testing.assert_allclose(xi, sigma * np.abs(normals @ across), rtol=0.02, atol=1e-12)
     assert (xi <= 1.02 * sigma).all()
-    assert (pose_sigma(rays0, rays1, pose0, pose1, 0.0) == 0).all()
-    assert (pose_sigma(rays0, rays1, pose0, pose1, 1.0) >= pose_sigma(
-        rays0, rays1, pose0, pose1, 0.5 * b)).all()  # at most a right angle's turn
+    assert (pose_sigma(rays0, parallax, pose0, pose1, 0.0) == 0).all()
+    assert (pose_sigma(rays0, parallax, pose0, pose1, 1.0) >= pose_sigma(
+        rays0, parallax, pose0, pose1, 0.5 * b)).all()  # at most a right angle's turn
 
 
 def test_the_poses_error_keeps_a_millimetre_baseline_from_flagging_near_static_cells():
@@ -381,7 +382,8 @@ def test_the_poses_error_keeps_a_millimetre_baseline_from_flagging_near_static_c
     pose1[:3, 3] = 0.003 * given
     xi = fm.constraints(rays0, rays1, pose0, pose1).epipolar
     flow_only = 0.25 * 0.003  # a quarter pixel at 3 mrad per pixel
-    sigma = np.hypot(flow_only, pose_sigma(rays0, rays1, pose0, pose1, 0.002))
+    parallax = triangulate_range(rays0, rays1, pose0, pose1, far=1e6, with_parallax=True)[2]
+    sigma = np.hypot(flow_only, pose_sigma(rays0, parallax, pose0, pose1, 0.002))
     assert np.percentile(xi / flow_only, 90) > 2
     assert (xi / sigma < 2).all()
 
