@@ -129,9 +129,9 @@ def test_the_poses_error_keeps_the_kitchens_millimetre_steps_from_flagging_it():
     static table and pan (measured 2.25 % of the right camera's static background), with the
     poses' 2 mm in the error model it does not (0.83 %, as without the epipolar significance)."""
     import cv2
+    from fisheyemotion.eval.real import find_clips, static_flagged
 
     from fisheyemotion import MotionDetector, Params, Road
-    from fisheyemotion.eval.real import find_clips, static_flagged
     from fisheyemotion.inputs import ImageFolder
     from fisheyemotion.poses import PoseMatcher, read_poses
 
