@@ -521,7 +521,7 @@ class MotionDetector:
             static_flow = self._static_flow_for(t0, t1)
         likelihood = res.likelihood
         sigma = None
-        significant = p.significance > 0 or p.epipolar_significance > 0
+        significant = _counts_sigmas(p)
         keep_scene = stream and self.scene is not None
         contact = p.ground_contact and self.road.known
         if (significant or contact or keep_scene) and not res.static_camera:
@@ -625,7 +625,7 @@ class MotionDetector:
                                     at - measured_at, measured)
         on_arc = constraints(rays0, arc, t0, t1, road=road, params=p)
         likelihood = on_arc.likelihood
-        if sigma is not None and (p.significance > 0 or p.epipolar_significance > 0):
+        if sigma is not None and _counts_sigmas(p):
             likelihood = self._with_significance(on_arc, sigma[r, c], likelihood)
         with np.errstate(invalid="ignore"):
             scored = likelihood > p.threshold
@@ -899,6 +899,11 @@ class MotionDetector:
         grid = Grid(p.grid, self._centres, cell_flow, measured, valid)
         return Detection(likelihood, mask, maps, flow, grid, regions, res.static_camera,
                          cells_now)
+
+
+def _counts_sigmas(params: Params) -> bool:
+    """Whether some deviation counts in flow-error sigmas (:meth:`MotionDetector._with_significance`)."""
+    return params.significance > 0 or params.epipolar_significance > 0
 
 
 def _pair_item(item) -> tuple:

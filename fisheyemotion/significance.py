@@ -125,9 +125,9 @@ def pose_sigma(rays0: NDArray[np.float64], parallax: NDArray[np.float64],
     if b == 0.0 or position_sigma == 0.0:
         return parallax * 0.0
     travel = pose0[:3, :3].T @ (baseline / b)  # in the first camera's frame
-    cos_theta = rays0 @ travel
-    cos_theta *= cos_theta
-    np.subtract(1.0, cos_theta, out=cos_theta)  # sin(theta)^2
-    np.sqrt(cos_theta, out=cos_theta)
+    sin_theta = rays0 @ travel  # cos(theta), turned into sin(theta) in place
+    sin_theta *= sin_theta
+    np.subtract(1.0, sin_theta, out=sin_theta)
+    np.sqrt(sin_theta, out=sin_theta)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return min(1.0, position_sigma / b) * parallax / cos_theta
+        return min(1.0, position_sigma / b) * parallax / sin_theta

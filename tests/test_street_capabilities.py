@@ -18,7 +18,7 @@ from fisheyemotion.significance import cell_sigma, pixel_angle, pose_sigma
 from fisheyemotion.static_scene import StaticScene, triangulate_range
 
 from .cameras import ALL_CAMERAS, CAMERA_IDS, tumvi_kb
-from .scenes import camera_pose, moved, rays_of
+from .scenes import camera_pose, moved, random_rotation, rays_of
 
 CAM = tumvi_kb(320, 240, 100.0)
 WALL = synth.parse_scenario({
@@ -323,12 +323,6 @@ def test_cell_sigma_grows_with_discordant_flow():
     assert (s[2:] > 5 * 0.25 * 0.01).all()
 
 
-def _rotation(rng):
-    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
-    q = q * np.sign(np.diag(r))
-    return q if np.linalg.det(q) > 0 else -q
-
-
 @given(st.integers(0, 2**32 - 1))
 @settings(max_examples=25, deadline=None)
 def test_pose_sigma_is_the_arc_deviation_a_turned_direction_of_travel_gives(seed):
@@ -337,7 +331,7 @@ def test_pose_sigma_is_the_arc_deviation_a_turned_direction_of_travel_gives(seed
     along its epipolar plane's normal (first order), never more."""
     rng = np.random.default_rng(seed)
     b, delta = 0.003, 1e-4
-    r0, r1 = _rotation(rng), _rotation(rng)
+    r0, r1 = random_rotation(rng), random_rotation(rng)
     c0 = rng.normal(size=3)
     travel = rng.normal(size=3)
     travel /= np.linalg.norm(travel)
