@@ -10,7 +10,8 @@ estimated in the first camera's frame, what the false regions of the default pip
 far the prior and the flow are off there, why the scene model's ranges are wrong there, how
 far the scene model's ranges are off on the tuning street's brick wall, what the ground-contact
 test's scene-agreement veto and the arc test cost and buy with the exact flow, whether one
-region statistic could drop the false regions, how far Table 2 moves under negligible, noisy
+region statistic could drop the false regions, which ranges the ground-contact test fails
+on, how far Table 2 moves under negligible, noisy
 and refined poses over several draws, and with the scene model off, how far a warp prior
 from the true depth, with and without occlusions handled, would go, how far off a stream's
 first pair's prior is with and without the scene-model bootstrap, and the share of pairs with a
@@ -25,6 +26,7 @@ import sys
 import warnings
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 import fisheyemotion as fm
@@ -445,6 +447,69 @@ def scene_agreement_tradeoff() -> None:
         print(f"exact flow, {name}: false-positive frames / crossing detected: {cells}")
 
 
+def ground_contact_ranges(names=("street_kb", "street_heldout_kb")) -> None:
+    """Which ranges the ground-contact test fails on: the cells of the regions it tests (led by
+    the anti-parallel term, ``Params()``, Farneback, streamed) that it finds standing, with the
+    ranges it was given (the measured flow's), with the exact flow's static readings, and with
+    the measured ones inside the region but the exact ones around it, and the other way round;
+    regions that touch no moving object (static structure) and those mostly on a moving one."""
+    from fisheyemotion import detector as detector_module
+    from fisheyemotion.flow import grid_average
+    from fisheyemotion.static_scene import triangulate_range
+
+    standing = detector_module.standing_regions
+    seen: dict = {}
+
+    def capture(moving, share, ranges, *args, **kwargs):
+        seen.update(moving=moving.copy(), share=share.copy(), ranges=ranges.copy(), args=args,
+                    kwargs=kwargs)
+        return standing(moving, share, ranges, *args, **kwargs)
+
+    p = fm.Params()
+    g, gap = p.grid, p.frame_gap
+    totals = {kind: np.zeros(5) for kind in ("static", "moving")}
+    detector_module.standing_regions = capture
+    try:
+        for name in names:
+            seq = Sequence(SEQUENCES / name)
+            renderer = Renderer(seq.camera, load_scenario(seq.path / "scenario.yaml"),
+                                supersample=1)
+            det = fm.MotionDetector(seq.camera, params=p, roi=seq.roi())
+            for k in range(len(seq)):
+                seen.clear()
+                det.apply(seq.frame(k), seq.poses[k])
+                if not seen:
+                    continue
+                t0, t1 = seq.poses[k - gap], seq.poses[k]
+                exact = grid_average(np.nan_to_num(renderer.flow(k, gap=gap), nan=1e5), g)
+                rays1, _ = seq.camera.unproject(det._centres + exact)
+                true = triangulate_range(det._rays0, rays1, t0, t1, far=p.prior_distance)[0]
+                rows, cols = true.shape
+                c = (g - 1) // 2
+                moving_px = seq.mask(k - gap)[c:rows * g:g, c:cols * g:g] > 0
+                n, labels = cv2.connectedComponents(seen["moving"].astype(np.uint8),
+                                                    connectivity=8)
+                for i in range(1, n):
+                    cells = labels == i
+                    if seen["share"][cells].mean() < 0.5:  # not tested
+                        continue
+                    measured = seen["ranges"]
+                    row = [cells.sum()]
+                    for ranges in (measured, true, np.where(cells, measured, true),
+                                   np.where(cells, true, measured)):
+                        stands = standing(cells, seen["share"], ranges, *seen["args"],
+                                          **seen["kwargs"])
+                        row.append(stands[cells].sum())
+                    totals["moving" if moving_px[cells].mean() > 0.5 else "static"] += row
+    finally:
+        detector_module.standing_regions = standing
+    for kind, (cells, *stand) in totals.items():
+        print(f"{', '.join(names)}: {int(cells)} cells of tested regions on {kind} objects; "
+              "standing with the measured ranges / the exact ones / measured in the region and "
+              "exact around it / exact in the region and measured around it: "
+              + " / ".join(f"{100 * s / max(cells, 1):.0f} %" for s in stand))
+
+
 def false_region_rules() -> None:
     """Could one region statistic drop the false regions of ``Params()`` (Farneback, streamed,
     every demo sequence)? False-positive frames per scene group with the regions that a rule
@@ -857,5 +922,6 @@ if __name__ == "__main__":
     scene_model_amplification()
     scene_agreement_tradeoff()
     false_region_rules()
+    ground_contact_ranges()
     stored_point_errors()
     true_depth_prior_bounds()
