@@ -364,9 +364,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "or the bag's CameraInfo)")
     p.add_argument("--camera", type=_camera_arg, default=0,
                    help="camera index or name in --calib (default: %(default)s)")
-    p.add_argument("--poses", help="pose file: TUM, KITTI, EuRoC CSV, Aria CSV, MPS CSV, .npy or "
-                   ".npz (default: poses.txt or poses*.csv in INPUT; none: estimated from the "
-                   "images, scale unknown, written to OUT/poses.txt)")
+    p.add_argument("--poses", help="pose file: TUM, KITTI, EuRoC CSV, Aria CSV, MPS CSV (closed "
+                   "or open loop), a CSV whose header names tx..qw and a timestamp with its unit, "
+                   ".npy or .npz (default: poses.txt or poses*.csv in INPUT; none: estimated from "
+                   "the images, scale unknown, written to OUT/poses.txt)")
     p.add_argument("--poses-of", choices=("camera", "rig"), default="camera",
                    help="the poses are of the camera, or of the calibration's reference frame "
                    "(IMU, device, vehicle), composed with the camera's extrinsic "

@@ -15,6 +15,12 @@ Formats read by :func:`read_poses` (detected from the name and the content)
 ``mps``    Project Aria MPS trajectory CSV (``closed_loop_trajectory.csv``,
            ``aria_trajectory.csv``): ``tracking_timestamp_us``, ``tx_world_device`` ...
            ``qw_world_device``: *device* poses (compose with ``T_Device_Camera``)
+``csv``    any CSV whose header names the pose's columns ``tx ty tz qx qy qz qw``, each alone
+           or as a prefix (``tx_odometry_device``), and a timestamp column whose name says its
+           unit (``_ns``, ``_us``, ``_ms``, ``_s``; the ``tracking_`` one where there are
+           several): Project Aria MPS open-loop trajectories (``open_loop_trajectory.csv``,
+           *device* poses in the VIO's odometry frame; a ``session_uid`` column must hold one
+           session, whose frame it names), on-device VIO exports, a tool's own pose logs
 ``npy``    ``.npy`` array ``(N, 4, 4)``; ``.npz`` with ``poses`` ``(N, 4, 4)`` and optional
            ``timestamps`` ``(N,)`` seconds and ``names`` ``(N,)``
 =========  ============================================================================
@@ -47,7 +53,7 @@ from .calib.transforms import (
 
 __all__ = ["POSE_FORMATS", "PoseMatcher", "Trajectory", "read_poses", "read_tum", "write_tum"]
 
-POSE_FORMATS = ("tum", "kitti", "euroc", "aria", "mps", "npy")
+POSE_FORMATS = ("tum", "kitti", "euroc", "aria", "mps", "csv", "npy")
 
 
 @dataclass(frozen=True, eq=False)
@@ -140,6 +146,20 @@ class Trajectory:
 
 # ---- readers --------------------------------------------------------------------------------
 
+#: Seconds per unit of a timestamp column, by the unit its name carries.
+_TIME_UNITS = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0, "sec": 1.0}
+_POSE_COLUMNS = ("tx", "ty", "tz", "qx", "qy", "qz", "qw")
+
+
+def _header(line: str) -> list[str]:
+    return [h.strip() for h in line.split(",")]
+
+
+#: Columns naming the frame a row's pose is in: Aria MPS's open-loop ``session_uid`` (one
+#: odometry frame per session) and closed-loop ``graph_uid`` (one world per graph).
+_FRAME_IDS = ("session_uid", "graph_uid")
+
+
 def _text(p: Path) -> str:
     try:
         return p.read_text(encoding="utf-8")
@@ -200,6 +220,8 @@ def read_poses(path: str | os.PathLike, *, format: str | None = None) -> Traject
         return _read_mps(p, text)
     if format == "euroc" or (format is None and ("p_rs_r_x" in header or "q_rs_w" in header)):
         return _read_euroc(p, text)
+    if format == "csv" or (format is None and _named_columns(first)):
+        return _read_named_csv(p, text)
     rows = _rows(text)
     if not rows:
         raise ValueError(f"{p}: no poses")
@@ -209,7 +231,8 @@ def read_poses(path: str | os.PathLike, *, format: str | None = None) -> Traject
     if format == "tum" or (format is None and width == 8):
         return _read_tum(p, rows)
     raise ValueError(f"{p}: line {rows[0][0]}: cannot tell the pose format from {width} "
-                     f"columns; expected TUM (8), KITTI (12), EuRoC CSV, Aria CSV or .npy/.npz")
+                     f"columns; expected TUM (8), KITTI (12), EuRoC CSV, Aria CSV, a CSV whose "
+                     f"header names tx ... qw and a timestamp, or .npy/.npz")
 
 
 def _read_tum(p: Path, rows) -> Trajectory:
@@ -285,8 +308,59 @@ def _read_aria(p: Path, text: str) -> Trajectory:
 
 
 def _read_mps(p: Path, text: str) -> Trajectory:
-    cols = tuple(f"{c}_world_device" for c in ("tx", "ty", "tz", "qx", "qy", "qz", "qw"))
+    cols = tuple(f"{c}_world_device" for c in _POSE_COLUMNS)
+    lines = [line for line in text.splitlines() if line.strip()]
+    _one_frame(p, _header(lines[0]), lines[1:])
     return _read_csv_columns(p, text, ("tracking_timestamp_us", *cols), None, 1e-6)
+
+
+def _named_columns(first: str) -> bool:
+    """Whether a first line is a CSV header naming the pose's columns (the ``csv`` format)."""
+    head = _header(first.lstrip("#"))
+    return len(head) > 1 and all(any(h == c or h.startswith(c + "_") for h in head)
+                                 for c in _POSE_COLUMNS)
+
+
+def _read_named_csv(p: Path, text: str) -> Trajectory:
+    """The ``csv`` format: columns found by name (module doc)."""
+    lines = [line for line in text.splitlines() if line.strip()]
+    if not lines:
+        raise ValueError(f"{p}: no poses")
+    head = _header(lines[0].lstrip("#"))
+    need = []
+    for c in _POSE_COLUMNS:
+        found = [h for h in head if h == c or h.startswith(c + "_")]
+        if len(found) != 1:
+            raise ValueError(f"{p}: header: expected one {c!r} column (named {c} or {c}_...), "
+                             f"got {found or 'none'}")
+        need.append(found[0])
+    times = [h for h in head if {"timestamp", "time", "t"} & set(h.lower().split("_"))]
+    if len(times) > 1:
+        times = [h for h in times if h.lower().startswith("tracking")] or times
+    if len(times) != 1:
+        raise ValueError(f"{p}: header: expected one timestamp column, got {times or 'none'}")
+    units = [_TIME_UNITS[t] for t in times[0].lower().split("_") if t in _TIME_UNITS]
+    if len(units) != 1:
+        raise ValueError(f"{p}: header: the timestamp column {times[0]!r} does not say its unit "
+                         "(_ns, _us, _ms or _s in its name)")
+    _one_frame(p, head, lines[1:])
+    return _read_csv_columns(p, "\n".join([",".join(head), *lines[1:]]),
+                             (times[0], *need), None, units[0])
+
+
+def _one_frame(p: Path, head: list[str], rows: list[str]) -> None:
+    """A ValueError naming the line where a :data:`_FRAME_IDS` column changes value: poses in
+    different frames cannot be interpolated into one trajectory."""
+    for name in _FRAME_IDS:
+        if name not in head:
+            continue
+        col = head.index(name)
+        ids = [(n, parts[col].strip() if len(parts) > col else "")
+               for n, parts in ((n, line.split(",")) for n, line in enumerate(rows, start=2))]
+        changed = next((n for n, uid in ids if uid != ids[0][1]), None)
+        if changed is not None:
+            raise ValueError(f"{p}: line {changed}: {name} changes: the poses after it are in "
+                             "another frame; give the poses of one")
 
 
 def _read_array(p: Path) -> Trajectory:

@@ -152,3 +152,25 @@ def test_the_poses_error_keeps_the_kitchens_millimetre_steps_from_flagging_it():
                 static[position_sigma] = static_flagged((result.mask > 0) & valid, truth,
                                                         valid)[0]
     assert static[0.0] > 0.015 and static[0.002] < 0.01
+
+
+def test_the_cli_takes_the_clips_vio_export_as_device_poses(tmp_path):
+    """``fisheyemotion detect`` on the Gen2 clip with its 800 Hz VIO export as the rig's poses
+    (``--poses-of rig``: composed with the factory T_Device_Camera) finds the regions it finds
+    with the recording's per-frame camera poses, box for box."""
+    import pandas as pd
+
+    from fisheyemotion.cli import main
+
+    clip = REAL / "aria_gen2_office"
+    camera = clip / "slam-side-left"
+    common = ["detect", str(camera), "--calib", str(FACTORY), "--camera", "slam-side-left",
+              "--quiet"]
+    assert main([*common, "--poses", str(clip / "poses_vio_high_frequency.csv"),
+                 "--poses-of", "rig", "--out", str(tmp_path / "vio")]) == 0
+    assert main([*common, "--poses", str(camera / "poses_T_odometry_camera.csv"),
+                 "--out", str(tmp_path / "frames")]) == 0
+    vio, frames = (pd.read_csv(tmp_path / name / "regions.csv") for name in ("vio", "frames"))
+    assert len(vio) > 0
+    boxes = [c for c in vio.columns if c in ("x", "y", "w", "h", "area", "frame")]
+    pd.testing.assert_frame_equal(vio[boxes], frames[boxes])

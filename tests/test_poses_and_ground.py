@@ -46,6 +46,87 @@ def test_aria_pose_csv_is_named_by_frame():
     np.testing.assert_array_equal(pose, traj.poses[3])
 
 
+def _rotation_deg(a, b):
+    """Angle (degrees) between two rotation matrices, stable near 0."""
+    return float(np.degrees(2 * np.arcsin(min(1.0, np.linalg.norm(a - b, "fro") / np.sqrt(8)))))
+
+
+@pytest.mark.parametrize("camera", ["slam-side-left", "slam-side-right"])
+def test_an_aria_vio_export_with_the_factory_extrinsic_gives_the_per_frame_camera_poses(camera):
+    """The Gen2 clip's 800 Hz VIO export (device poses, columns found by name) composed with the
+    factory calibration's T_device_camera and interpolated at the frames' times is the
+    recording's own per-frame camera pose file (written from the same trajectory by other
+    code) to a micrometre."""
+    clip = "data/real/aria_gen2_office"
+    vio = read_poses(f"{clip}/poses_vio_high_frequency.csv")
+    assert len(vio) == 237 and np.all(np.diff(vio.stamps) > 0)
+    extrinsic = fm.calib.load_rig(f"{clip}/device_calibration_full.json").extrinsic(camera)
+    frames = read_poses(f"{clip}/{camera}/poses_T_odometry_camera.csv")
+    got = vio.compose(extrinsic).at(frames.stamps, max_gap=0.01)
+    np.testing.assert_allclose(got[:, :3, 3], frames.poses[:, :3, 3], atol=5e-6)
+    assert max(_rotation_deg(a[:3, :3], b[:3, :3]) for a, b in zip(got, frames.poses,
+                                                                      strict=True)) < 1e-4
+    # Without the extrinsic they are the device's poses, not the camera's: centimetres apart.
+    assert np.abs(vio.at(frames.stamps, max_gap=0.01)[:, :3, 3]
+                  - frames.poses[:, :3, 3]).max() > 1e-3
+
+
+OPEN_LOOP_HEADER = ("tracking_timestamp_us,utc_timestamp_ns,session_uid,tx_odometry_device,"
+                    "ty_odometry_device,tz_odometry_device,qx_odometry_device,qy_odometry_device,"
+                    "qz_odometry_device,qw_odometry_device,device_linear_velocity_x_odometry,"
+                    "device_linear_velocity_y_odometry,device_linear_velocity_z_odometry,"
+                    "angular_velocity_x_device,angular_velocity_y_device,"
+                    "angular_velocity_z_device,gravity_x_odometry,gravity_y_odometry,"
+                    "gravity_z_odometry,quality_score")
+
+
+def _open_loop(sessions):
+    rows = [OPEN_LOOP_HEADER]
+    for t, p, uid in zip(STAMPS, POSES, sessions, strict=True):
+        q = [float(v) for v in matrix_to_quat(p[:3, :3])]
+        rows.append(",".join([str(int(round(t * 1e6))), "-1", uid, *map(repr, p[:3, 3].tolist()),
+                              *map(repr, q), *["0.0"] * 9, "1.0"]))
+    return "\n".join(rows)
+
+
+def test_an_mps_open_loop_trajectory_is_read_by_its_column_names(tmp_path):
+    """Aria MPS's open_loop_trajectory.csv (projectaria_tools' 20 columns): the device poses
+    in the odometry frame at the tracking timestamps (microseconds), not the UTC ones."""
+    (tmp_path / "open_loop_trajectory.csv").write_text(_open_loop(["s0"] * len(POSES)))
+    traj = read_poses(tmp_path / "open_loop_trajectory.csv")
+    np.testing.assert_allclose(traj.poses, POSES, atol=1e-12)
+    np.testing.assert_allclose(traj.stamps, STAMPS, atol=1e-9)
+    # A new VIO session is another odometry frame: named, not interpolated across.
+    (tmp_path / "two.csv").write_text(_open_loop(["s0", "s0", "s1", "s1", "s1"]))
+    with pytest.raises(ValueError, match=r"two.csv: line 4: session_uid changes"):
+        read_poses(tmp_path / "two.csv")
+
+
+@pytest.mark.parametrize("unit, scale", [("ns", 1e9), ("us", 1e6), ("ms", 1e3), ("s", 1.0)])
+def test_a_csv_naming_its_columns_is_read_in_the_unit_its_timestamp_names(tmp_path, unit, scale):
+    head = f"qw,qx,qy,qz,time_{unit},tx,ty,tz,extra"  # any order, other columns ignored
+    rows = [head]
+    for t, p in zip(STAMPS, POSES, strict=True):
+        x, y, z, w = (float(v) for v in matrix_to_quat(p[:3, :3]))
+        rows.append(",".join(map(repr, [w, x, y, z, float(t * scale), *p[:3, 3].tolist(), 7.0])))
+    (tmp_path / "log.csv").write_text("\n".join(rows))
+    traj = read_poses(tmp_path / "log.csv")
+    np.testing.assert_allclose(traj.poses, POSES, atol=1e-9)
+    np.testing.assert_allclose(traj.stamps, STAMPS, rtol=1e-12)
+
+
+@pytest.mark.parametrize("head, match", [
+    ("timestamp,tx,ty,tz,qx,qy,qz,qw", r"'timestamp' does not say its unit"),
+    ("t_ns,tx,tx_b,ty,tz,qx,qy,qz,qw", r"one 'tx' column .*\['tx', 'tx_b'\]"),
+    ("a_ns,tx,ty,tz,qx,qy,qz,qw", r"one timestamp column, got none"),
+    ("start_time_s,end_time_s,tx,ty,tz,qx,qy,qz,qw", r"one timestamp column, got \['start"),
+])
+def test_a_csv_naming_its_columns_names_what_it_lacks(tmp_path, head, match):
+    (tmp_path / "p.csv").write_text(head + "\n" + ",".join(["1"] * len(head.split(","))))
+    with pytest.raises(ValueError, match=match):
+        read_poses(tmp_path / "p.csv")
+
+
 @settings(max_examples=30, deadline=None)
 @given(w=st.floats(0.0, 1.0))
 def test_interpolation_is_linear_in_translation_and_slerp_in_rotation(w):
