@@ -280,7 +280,9 @@ def _read_csv_columns(p: Path, text: str, need: tuple[str, ...], name: str | Non
                       time_scale: float) -> Trajectory:
     """A CSV with a header: ``need`` = (time, tx, ty, tz, qx, qy, qz, qw) column names."""
     lines = [line for line in text.splitlines() if line.strip()]
-    head = [h.strip() for h in lines[0].split(",")]
+    if not lines:
+        raise ValueError(f"{p}: no poses")
+    head = _header(lines[0])
     wanted = need + ((name,) if name else ())
     missing = [n for n in wanted if n not in head]
     if missing:
@@ -310,6 +312,8 @@ def _read_aria(p: Path, text: str) -> Trajectory:
 def _read_mps(p: Path, text: str) -> Trajectory:
     cols = tuple(f"{c}_world_device" for c in _POSE_COLUMNS)
     lines = [line for line in text.splitlines() if line.strip()]
+    if not lines:
+        raise ValueError(f"{p}: no poses")
     _one_frame(p, _header(lines[0]), lines[1:])
     return _read_csv_columns(p, text, ("tracking_timestamp_us", *cols), None, 1e-6)
 
@@ -368,8 +372,8 @@ def _read_array(p: Path) -> Trajectory:
         data = np.load(p, allow_pickle=False)
     except FileNotFoundError:
         raise ValueError(f"{p}: no such pose file") from None
-    except (OSError, ValueError) as exc:
-        raise ValueError(f"{p}: cannot be read as a numpy array: {exc}") from None
+    except (OSError, ValueError, EOFError) as exc:
+        raise ValueError(f"{p}: cannot be read as a numpy array: {exc or 'empty'}") from None
     if isinstance(data, np.ndarray):
         poses, stamps, names = data, None, None
     else:

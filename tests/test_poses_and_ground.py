@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 import fisheyemotion as fm
 from fisheyemotion import synth
 from fisheyemotion.ground import GroundEstimator, check_road
-from fisheyemotion.poses import PoseMatcher, Trajectory, read_poses, write_tum
+from fisheyemotion.poses import POSE_FORMATS, PoseMatcher, Trajectory, read_poses, write_tum
 
 from .cameras import tumvi_kb
 from .scenes import random_rotation
@@ -186,6 +186,14 @@ def test_bad_pose_files_name_the_line(tmp_path, bad, match):
     (tmp_path / "p.txt").write_text(bad)
     with pytest.raises(ValueError, match=match):
         read_poses(tmp_path / "p.txt")
+
+
+@pytest.mark.parametrize("fmt", [None, *POSE_FORMATS])
+@pytest.mark.parametrize("content", ["", "\n\n"])
+def test_an_empty_pose_file_is_a_value_error_in_every_format(tmp_path, fmt, content):
+    (tmp_path / "p.csv").write_text(content)
+    with pytest.raises(ValueError, match="p.csv"):
+        read_poses(tmp_path / "p.csv", format=fmt)
 
 
 def test_binary_garbage_is_a_value_error(tmp_path):
