@@ -31,6 +31,10 @@ class CliError(ValueError):
     """A user error reported as one line."""
 
 
+class _SourceError(ValueError):
+    """A frame the input could not give (raised by the input, naming it)."""
+
+
 # ---- calibrations ---------------------------------------------------------------------------
 
 def calibration_table(paths: Sequence[Path]) -> pd.DataFrame:
@@ -128,8 +132,15 @@ def run_detect(frames, camera: calib.CameraModel, matcher, out: Path, *,
     fed: deque = deque()  # (frame, name, its pose's stamp) of the frames given to the stream
 
     def items():
-        for frame in tqdm(read_ahead(frames), desc="detect", total=total, disable=not progress,
-                          leave=False):
+        source = iter(tqdm(read_ahead(frames), desc="detect", total=total, disable=not progress,
+                           leave=False))
+        while True:
+            try:
+                frame = next(source)
+            except StopIteration:
+                return
+            except ValueError as exc:  # a frame that cannot be read: its message names it
+                raise _SourceError(str(exc)) from None
             name = Path(frame.name).stem if frame.name else f"{frame.index:06d}"
             fed.append((frame, name, None))
             stamp, pose = (None, None) if matcher is None else matcher(
@@ -146,6 +157,8 @@ def run_detect(frames, camera: calib.CameraModel, matcher, out: Path, *,
                 result = next(results)
             except StopIteration:
                 break
+            except _SourceError as exc:
+                raise CliError(str(exc)) from None
             except ValueError as exc:  # raised while the newest frame was taken in
                 frame, name, _ = fed[-1]
                 raise CliError(f"frame {frame.index} ({name}): {exc}") from None

@@ -122,6 +122,24 @@ def test_a_missing_frame_does_not_shift_the_poses(tmp_path, sequence):
         "000000", "000002", "000003"]
 
 
+@pytest.mark.parametrize("corrupt", ["000001.png", "000002.png"])
+def test_a_frame_that_cannot_be_read_is_one_error_naming_it(tmp_path, sequence, capsys, corrupt):
+    """A corrupt frame of an input is reported by its file, not as the frame before it (or,
+    with the frames before it already written, as an IndexError traceback), and no output is
+    left behind."""
+    import shutil
+
+    seq = tmp_path / "seq"
+    shutil.copytree(sequence, seq)
+    (seq / "frames" / corrupt).write_bytes(b"not a png")
+    (tmp_path / "p.yaml").write_text("frame_gap: 1\n")
+    code = main(["detect", str(seq), "--out", str(tmp_path / "o"), "--quiet", "--road", "z0",
+                 "--params", str(tmp_path / "p.yaml")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and err[-1].endswith(f"{corrupt}: cannot be read as an 8-bit image")
+    assert "Traceback" not in "\n".join(err) and not (tmp_path / "o").exists()
+
+
 @pytest.mark.parametrize("value", ["nan", "-1", "inf"])
 def test_max_dt_must_be_a_finite_tolerance(tmp_path, sequence, value):
     assert main(["detect", str(sequence), "--out", str(tmp_path / "o"), "--match",
