@@ -102,6 +102,18 @@ def test_an_mps_open_loop_trajectory_is_read_by_its_column_names(tmp_path):
         read_poses(tmp_path / "two.csv")
 
 
+def test_an_mps_closed_loop_trajectory_in_two_worlds_is_refused(tmp_path):
+    rows = ["graph_uid,tracking_timestamp_us,utc_timestamp_ns,tx_world_device,ty_world_device,"
+            "tz_world_device,qx_world_device,qy_world_device,qz_world_device,qw_world_device"]
+    for k, graph in enumerate(["g0", "g0", "g0", "g1"]):
+        rows.append(f"{graph},{k * 1000},-1,{k}.0,0,0,0,0,0,1")
+    (tmp_path / "closed_loop_trajectory.csv").write_text("\n".join(rows))
+    with pytest.raises(ValueError, match=r"line 5: graph_uid changes"):
+        read_poses(tmp_path / "closed_loop_trajectory.csv")
+    (tmp_path / "one.csv").write_text("\n".join(rows[:4]))
+    np.testing.assert_allclose(read_poses(tmp_path / "one.csv").poses[:, 0, 3], [0, 1, 2])
+
+
 @pytest.mark.parametrize("unit, scale", [("ns", 1e9), ("us", 1e6), ("ms", 1e3), ("s", 1.0)])
 def test_a_csv_naming_its_columns_is_read_in_the_unit_its_timestamp_names(tmp_path, unit, scale):
     head = f"qw,qx,qy,qz,time_{unit},tx,ty,tz,extra"  # any order, other columns ignored
