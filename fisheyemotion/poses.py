@@ -276,23 +276,39 @@ def _read_euroc(p: Path, text: str) -> Trajectory:
     return Trajectory(np.array(poses), np.array(stamps), source=str(p))
 
 
-def _read_csv_columns(p: Path, text: str, need: tuple[str, ...], name: str | None,
-                      time_scale: float) -> Trajectory:
-    """A CSV with a header: ``need`` = (time, tx, ty, tz, qx, qy, qz, qw) column names."""
+def _lines(p: Path, text: str) -> list[str]:
+    """The non-empty lines of a CSV (its header first), or a ValueError when there are none."""
     lines = [line for line in text.splitlines() if line.strip()]
     if not lines:
         raise ValueError(f"{p}: no poses")
+    return lines
+
+
+def _read_csv_columns(p: Path, lines: list[str], need: tuple[str, ...], name: str | None,
+                      time_scale: float) -> Trajectory:
+    """A CSV with a header (``lines``: :func:`_lines`): ``need`` = (time, tx, ty, tz, qx, qy,
+    qz, qw) column names. A :data:`_FRAME_IDS` column whose value changes is a ValueError
+    naming the line: poses in different frames cannot be interpolated into one trajectory."""
     head = _header(lines[0])
     wanted = need + ((name,) if name else ())
     missing = [n for n in wanted if n not in head]
     if missing:
         raise ValueError(f"{p}: header: missing column(s) {missing}")
     col = {n: head.index(n) for n in wanted}
+    frame_ids = [head.index(n) for n in _FRAME_IDS if n in head]
+    first_ids = None
     names, stamps, poses = [], [], []
     for lineno, line in enumerate(lines[1:], start=2):
         parts = [x.strip() for x in line.split(",")]
         if len(parts) != len(head):
             raise ValueError(f"{p}: line {lineno}: expected {len(head)} columns, got {len(parts)}")
+        ids = [parts[c] for c in frame_ids]
+        first_ids = ids if first_ids is None else first_ids
+        if ids != first_ids:
+            changed = next(head[c] for c, a, b in zip(frame_ids, ids, first_ids, strict=True)
+                           if a != b)
+            raise ValueError(f"{p}: line {lineno}: {changed} changes: the poses after it are in "
+                             "another frame; give the poses of one")
         v = _numbers([parts[col[n]] for n in need], p, lineno)
         if name:
             names.append(parts[col[name]])
@@ -305,17 +321,12 @@ def _read_csv_columns(p: Path, text: str, need: tuple[str, ...], name: str | Non
 
 
 def _read_aria(p: Path, text: str) -> Trajectory:
-    return _read_csv_columns(p, text, ("timestamp_ns", "tx", "ty", "tz", "qx", "qy", "qz", "qw"),
-                             "file", 1e-9)
+    return _read_csv_columns(p, _lines(p, text), ("timestamp_ns", *_POSE_COLUMNS), "file", 1e-9)
 
 
 def _read_mps(p: Path, text: str) -> Trajectory:
     cols = tuple(f"{c}_world_device" for c in _POSE_COLUMNS)
-    lines = [line for line in text.splitlines() if line.strip()]
-    if not lines:
-        raise ValueError(f"{p}: no poses")
-    _one_frame(p, _header(lines[0]), lines[1:])
-    return _read_csv_columns(p, text, ("tracking_timestamp_us", *cols), None, 1e-6)
+    return _read_csv_columns(p, _lines(p, text), ("tracking_timestamp_us", *cols), None, 1e-6)
 
 
 def _named_columns(first: str) -> bool:
@@ -327,9 +338,7 @@ def _named_columns(first: str) -> bool:
 
 def _read_named_csv(p: Path, text: str) -> Trajectory:
     """The ``csv`` format: columns found by name (module doc)."""
-    lines = [line for line in text.splitlines() if line.strip()]
-    if not lines:
-        raise ValueError(f"{p}: no poses")
+    lines = _lines(p, text)
     head = _header(lines[0].lstrip("#"))
     need = []
     for c in _POSE_COLUMNS:
@@ -347,24 +356,8 @@ def _read_named_csv(p: Path, text: str) -> Trajectory:
     if len(units) != 1:
         raise ValueError(f"{p}: header: the timestamp column {times[0]!r} does not say its unit "
                          "(_ns, _us, _ms or _s in its name)")
-    _one_frame(p, head, lines[1:])
-    return _read_csv_columns(p, "\n".join([",".join(head), *lines[1:]]),
-                             (times[0], *need), None, units[0])
-
-
-def _one_frame(p: Path, head: list[str], rows: list[str]) -> None:
-    """A ValueError naming the line where a :data:`_FRAME_IDS` column changes value: poses in
-    different frames cannot be interpolated into one trajectory."""
-    for name in _FRAME_IDS:
-        if name not in head:
-            continue
-        col = head.index(name)
-        ids = [(n, parts[col].strip() if len(parts) > col else "")
-               for n, parts in ((n, line.split(",")) for n, line in enumerate(rows, start=2))]
-        changed = next((n for n, uid in ids if uid != ids[0][1]), None)
-        if changed is not None:
-            raise ValueError(f"{p}: line {changed}: {name} changes: the poses after it are in "
-                             "another frame; give the poses of one")
+    return _read_csv_columns(p, [",".join(head), *lines[1:]], (times[0], *need), None,
+                             units[0])
 
 
 def _read_array(p: Path) -> Trajectory:
