@@ -65,6 +65,16 @@ def _non_negative(text: str) -> float:
     return value
 
 
+def _workers(text: str) -> int:
+    try:
+        workers = int(text)
+    except ValueError:
+        workers = 0
+    if workers < 1:
+        raise argparse.ArgumentTypeError(f"expected a number of processes >= 1, got {text!r}")
+    return workers
+
+
 def _flows(text: str) -> list[str]:
     flows = [f.strip() for f in text.split(",") if f.strip()]
     bad = [f for f in flows if f not in ("farneback", "dis")]
@@ -206,7 +216,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="flow methods, comma-separated: farneback,dis (default: %(default)s)")
     p.add_argument("--out", required=True, help="report folder (written whole at the end)")
     p.add_argument("--overwrite", action="store_true", help="replace a non-empty --out")
-    p.add_argument("--workers", type=int, help="local processes (default: CPU count)")
+    p.add_argument("--workers", type=_workers, help="local processes (default: CPU count)")
     p.add_argument("--scheduler", help="Dask distributed scheduler address, tcp://host:port "
                    "(default: none, a local process pool)")
     p.add_argument("--world", choices=("scene", "first_camera", "raised"), default="scene",
@@ -254,7 +264,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "defaults)")
     p.add_argument("--out", required=True, help="report folder (written whole at the end)")
     p.add_argument("--overwrite", action="store_true", help="replace a non-empty --out")
-    p.add_argument("--workers", type=int, help="local processes (default: CPU count)")
+    p.add_argument("--workers", type=_workers, help="local processes (default: CPU count)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_compare)
 
@@ -270,6 +280,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--scenarios", help="comma-separated scenario names (default: all)")
     p.add_argument("--flow", default="farneback,dis",
                    help="flow methods, comma-separated (default: %(default)s)")
-    p.add_argument("--workers", type=int, help="local processes (default: CPU count)")
+    p.add_argument("--workers", type=_workers, help="local processes (default: CPU count)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_demo)

@@ -4,6 +4,7 @@ on a Dask cluster)."""
 from __future__ import annotations
 
 import ctypes
+import operator
 import os
 from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor
@@ -241,6 +242,15 @@ def evaluate(paths: Iterable[str | os.PathLike], params: Params | None = None, *
     """
     paths = [str(p) for p in paths]
     params = Params() if params is None else params
+    if workers is not None:
+        try:
+            count = 0 if isinstance(workers, bool) else operator.index(workers)
+        except TypeError:
+            count = 0
+        if count < 1:
+            raise ValueError(f"workers: expected a number of processes >= 1 (or None), got "
+                             f"{workers!r}")
+        workers = count
     job: Callable = _Job(params, options)
     if scheduler:
         try:
@@ -249,7 +259,11 @@ def evaluate(paths: Iterable[str | os.PathLike], params: Params | None = None, *
             raise ValueError("scheduler: Dask is not installed; pip install "
                              "'fisheyemotion[dask]'") from None
         job = _Job(params, options, dask_worker=True)
-        with Client(scheduler) as client:
+        try:
+            client = Client(scheduler)
+        except (OSError, ValueError, TypeError) as error:  # a bad address, no scheduler there
+            raise ValueError(f"scheduler: cannot use {scheduler!r}: {error}") from None
+        with client:
             futures = client.map(job, paths, pure=False)
             return client.gather(futures)
     if workers is None:

@@ -360,6 +360,36 @@ def test_eval_on_damaged_ground_truth_names_the_file(tmp_path, sequence, damage)
         evaluate_sequence(seq, fm.Params(frame_gap=1, flow="dis"), ablation=False)
 
 
+@pytest.mark.parametrize("workers", [0, -3, 1.5, "2", True])
+def test_eval_workers_must_be_a_count_of_processes(sequence, workers):
+    evaluate = __import__("importlib").import_module("fisheyemotion.eval.evaluate").evaluate
+
+    with pytest.raises(ValueError, match="workers"):
+        evaluate([sequence], fm.Params(), workers=workers, progress=False)
+
+
+@pytest.mark.parametrize("value", ["0", "-3", "two"])
+@pytest.mark.parametrize("command", ["eval", "compare", "demo"])
+def test_cli_workers_must_be_a_count_of_processes(tmp_path, sequence, capsys, command, value):
+    args = {"eval": ["eval", str(sequence)],
+            "compare": ["compare", "--calib", "a.yaml", "--calib", "b.yaml"],
+            "demo": ["demo"]}[command]
+    with pytest.raises(SystemExit) as exit_:
+        main([*args, "--out", str(tmp_path / "o"), "--workers", value, "--quiet"])
+    assert exit_.value.code == 2
+    assert "--workers: expected a number of processes >= 1" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_eval_on_a_bad_scheduler_address_names_the_argument(tmp_path, sequence, capsys):
+    pytest.importorskip("dask.distributed")
+    code = main(["eval", str(sequence), "--out", str(tmp_path / "o"), "--scheduler", "nowhere",
+                 "--quiet"])
+    assert code == 2
+    assert "scheduler: cannot use 'nowhere'" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
 def test_params_and_road_name_their_field(tmp_path):
     with pytest.raises(ValueError, match="no such parameter file"):
         fm.Params.load(tmp_path / "missing.yaml")
