@@ -7,6 +7,7 @@ import math
 import os
 import shlex
 import sys
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -45,14 +46,21 @@ def _height(text: str) -> float | str:
         raise argparse.ArgumentTypeError(f"expected metres or 'scene', got {text!r}") from None
 
 
-def _seed(text: str) -> int:
-    try:
-        seed = int(text)
-    except ValueError:
-        seed = -1
-    if seed < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
-    return seed
+def _integer(minimum: int, what: str) -> Callable[[str], int]:
+    """An argparse type: an integer ``>= minimum`` (``what`` names it in the error)."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = minimum - 1
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"expected {what} >= {minimum}, got {text!r}")
+        return value
+    return parse
+
+
+_seed = _integer(0, "an integer")
+_workers = _integer(1, "a number of processes")
 
 
 def _non_negative(text: str) -> float:
@@ -63,16 +71,6 @@ def _non_negative(text: str) -> float:
     if not math.isfinite(value) or value < 0:
         raise argparse.ArgumentTypeError(f"expected a finite number >= 0, got {text!r}")
     return value
-
-
-def _workers(text: str) -> int:
-    try:
-        workers = int(text)
-    except ValueError:
-        workers = 0
-    if workers < 1:
-        raise argparse.ArgumentTypeError(f"expected a number of processes >= 1, got {text!r}")
-    return workers
 
 
 def _flows(text: str) -> list[str]:
