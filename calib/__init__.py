@@ -6,6 +6,7 @@
 """
 
 from .base import CameraModel, pixel_grid
+from .circle import ImageCircle, find_image_circle, nominal_camera
 from .errors import CalibrationError
 from .models import DoubleSphere, EnhancedUnified, Fisheye624, KannalaBrandt, Pinhole, RadialPoly, Unified
 from .readers import FORMATS, Rig, load, load_rig, parse, save_kalibr, save_opencv
@@ -24,12 +25,15 @@ __all__ = [
     "CameraModel",
     "DoubleSphere",
     "EnhancedUnified", "Fisheye624",
+    "ImageCircle",
     "KannalaBrandt",
     "Pinhole",
     "RadialPoly",
     "Unified",
     "create",
+    "find_image_circle",
     "model_class",
+    "nominal_camera",
     "pixel_grid",
     "register",
 ]

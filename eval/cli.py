@@ -89,12 +89,13 @@ def run_eval(paths: list[Path], params: Params, flows: list[str], out: Path, *,
     for flow in flows:
         results += evaluate(paths, params.replace(flow=flow), workers=workers,
                             scheduler=scheduler, progress=progress, **options)
-    real = None
+    real = pairs = None
     if real_data is not None and (real_data / "real").is_dir():
-        from .real import run_real
+        from .real import run_pairs, run_real
 
-        real = run_real(real_data)
-    report = write_report(results, out, params, commands=commands, title=title, real=real)
+        real, pairs = run_real(real_data), run_pairs(real_data)
+    report = write_report(results, out, params, commands=commands, title=title, real=real,
+                          pairs=pairs)
     return results, report
 
 

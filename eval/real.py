@@ -38,7 +38,8 @@ from fisheyemotion.road import Road
 
 from .pose_sources import pose_errors
 
-__all__ = ["RealClip", "TOLERANCE_PX", "find_clips", "run_real", "static_flagged"]
+__all__ = ["PAIRS", "RealClip", "TOLERANCE_PX", "find_clips", "run_pairs", "run_real",
+           "static_flagged"]
 
 #: Boundary tolerance of the ground-truth measure: pixels this close to a moving object are not
 #: scored (a dense flow's 15-px window and one 6-px grid cell cannot place a boundary closer).
@@ -52,6 +53,13 @@ class RealClip:
     folder: Path
     calibration: Path
     poses: Path
+
+
+#: The uncalibrated circular fisheye frame pairs (``data/real/fisheye_mc_pairs/<scene>/``, two
+#: frames each), run with a nominal camera from their image circle.
+PAIRS = "fisheye_mc_pairs"
+#: Grey levels by which a still camera's two frames (smoothed 5x5) differ where something moved.
+CHANGED_LEVELS = 20
 
 
 def find_clips(data: Path) -> list[RealClip]:
@@ -162,6 +170,50 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
         fig.suptitle("Real fisheye clips (Project Aria): detected regions in green, no road "
                      "(indoors, head-mounted)", fontsize=9)
     return pd.DataFrame(rows), fig
+
+
+def run_pairs(data: Path, params: Params | None = None, *, fov_deg: float = 180.0
+              ) -> pd.DataFrame | None:
+    """Detect on each uncalibrated frame pair of ``data/real/fisheye_mc_pairs`` (None if there
+    are none): a nominal equidistant camera from the first frame's image circle
+    (:mod:`fisheyemotion.calib.circle`, ``fov_deg`` across), the poses from the images, the
+    consecutive frames compared, no road. Where the camera stands still, the frames' difference
+    (more than ``CHANGED_LEVELS`` grey levels, smoothed 5x5) is what moved: the table gives the
+    share of it the detection covers and the share of the detection within 15 px of it."""
+    root = data / "real" / PAIRS
+    if not root.is_dir():
+        return None
+    params = Params(frame_gap=1) if params is None else params
+    rows = []
+    for scene in sorted(p for p in root.iterdir() if p.is_dir()):
+        frames = [f.image for f in ImageFolder(scene)]
+        if len(frames) != 2:
+            continue
+        prev, curr = (cv2.cvtColor(f, cv2.COLOR_BGR2GRAY) if f.ndim == 3 else f for f in frames)
+        circle = calib.find_image_circle(prev)
+        cam = calib.nominal_camera(circle, prev.shape[1], prev.shape[0], fov_deg=fov_deg)
+        inside = circle.mask(cam.width, cam.height)
+        det = MotionDetector(cam, Road.unknown(), params.for_camera(cam), roi=inside)
+        det.apply(prev)
+        result = det.apply(curr)
+        inside = inside > 0
+        flagged = (result.mask > 0) & inside
+        still = bool(det._tracker.still)
+        row = {"pair": scene.name, "size": f"{cam.width}x{cam.height}",
+               "image circle (cx, cy, radius px)":
+               f"{circle.cx:.1f}, {circle.cy:.1f}, {circle.radius:.1f}",
+               "camera (estimated)": "still" if still else "moving",
+               "flagged %": 100 * float(flagged[inside].mean()),
+               "regions": len(result.regions)}
+        if still:
+            changed = (cv2.absdiff(cv2.GaussianBlur(prev, (5, 5), 0), cv2.GaussianBlur(
+                curr, (5, 5), 0)) > CHANGED_LEVELS) & inside
+            near = cv2.dilate(changed.astype(np.uint8), np.ones((31, 31), np.uint8)) > 0
+            row["changed pixels flagged %"] = 100 * float(flagged[changed].mean())
+            row["flagged within 15 px of a change %"] = (
+                100 * float(near[flagged].mean()) if flagged.any() else np.nan)
+        rows.append(row)
+    return pd.DataFrame(rows) if rows else None
 
 
 def _percent(shares: list[float]) -> float:

@@ -353,8 +353,11 @@ def _png(fig: Figure, path: Path) -> bytes:
 
 def write_report(results: list[SequenceResult], out: str | Path, params: Params, *,
                  title: str = "fisheyemotion evaluation", commands: list[str] | None = None,
-                 real: tuple[pd.DataFrame, Figure | None] | None = None) -> Path:
-    """Write ``report.html`` (self-contained), ``report.md``, CSV tables and PNG figures."""
+                 real: tuple[pd.DataFrame, Figure | None] | None = None,
+                 pairs: pd.DataFrame | None = None) -> Path:
+    """Write ``report.html`` (self-contained), ``report.md``, CSV tables and PNG figures
+    (``real``: :func:`~fisheyemotion.eval.real.run_real`'s; ``pairs``:
+    :func:`~fisheyemotion.eval.real.run_pairs`')."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     flows = sorted({r.flow for r in results})
@@ -455,6 +458,19 @@ def write_report(results: list[SequenceResult], out: str | Path, params: Params,
         if "real.png" in images:
             md += ["", "![Figure 5. Detections on the real clips (green), with their own "
                    "poses.](real.png)"]
+    if pairs is not None:
+        pairs.to_csv(out / "real_pairs.csv", index=False)
+        md += ["", "## Real frame pairs without a calibration (data/real/fisheye_mc_pairs)", "",
+               "Circular 180-degree fisheye frame pairs with no calibration and no poses: each "
+               "runs with a nominal equidistant camera from its first frame's image circle "
+               "(`fisheyemotion.calib.nominal_camera`, 180 degrees across; a guess of the "
+               "lens, not a calibration), the poses from the images, no road. Where the "
+               "camera stands still, what moved is where the two frames differ (by more than "
+               "20 grey levels): the share of those pixels flagged, and the share of the "
+               "flagged pixels within 15 px of them. Where it moves, nothing but the "
+               "operator, who moves with the camera, should be flagged.", "",
+               pairs.astype(object).where(pairs.notna(), None).to_markdown(
+                   index=False, floatfmt=".2f", missingval="–")]
     md += ["", "## Where we fall short of the paper's Table 2", ""]
     md += [f"- {n}" for n in notes] or ["- Nowhere: every rate is at or above the paper's."]
     md += ["", "## Ablation: the paper's weights and each constraint alone", "",

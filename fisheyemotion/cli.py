@@ -7,6 +7,7 @@ Errors are one line on stderr and exit code 2.
 from __future__ import annotations
 
 import argparse
+import math
 import re
 import sys
 from collections import deque
@@ -255,7 +256,11 @@ def cmd_detect(args: argparse.Namespace) -> int:
     frames = open_source(source, image_topic=args.image_topic)
     is_bag = hasattr(frames, "trajectory")
     is_sequence = (source / "frames").is_dir()
-    if args.calib:
+    circle = None  # the image circle of a nominal camera (--calib circle[:FOV])
+    if args.calib and _circle_fov(args.calib) is not None:
+        camera, circle = _nominal_camera(frames, args.calib)
+        extrinsic = None
+    elif args.calib:
         rig = calib.load_rig(args.calib)
         camera, extrinsic = rig[args.camera], rig.extrinsic(args.camera)
     elif is_bag:
@@ -298,14 +303,30 @@ def cmd_detect(args: argparse.Namespace) -> int:
             for note in check_road(road, trajectory.poses, "--road", warn=False):
                 print(f"fisheyemotion detect: warning: {note}", file=sys.stderr)
     params = _detect_params(args, camera)
+    count = len(frames)
+    if count == 1:
+        raise CliError(f"{source}: one frame; detection needs two or more")
+    if 2 <= count <= params.frame_gap:  # a frame pair, or a short clip: compare what there is
+        print(f"fisheyemotion detect: the input has {count} frames: frame gap {count - 1} "
+              f"instead of {params.frame_gap}", file=sys.stderr)
+        params = params.replace(frame_gap=count - 1)
     roi_path = Path(args.roi) if args.roi else (source / "roi.png" if is_sequence else None)
     roi = None
     if roi_path is not None and (args.roi or roi_path.exists()):
         roi = cv2.imread(str(roi_path), cv2.IMREAD_GRAYSCALE)
         if roi is None:
             raise CliError(f"{roi_path}: cannot be read as an image")
+    if circle is not None:  # the image's own pixels only (and the given ROI's)
+        inside = circle.mask(camera.width, camera.height)
+        if roi is not None and roi.shape != inside.shape:
+            raise CliError(f"--roi: expected a {camera.width}x{camera.height} mask (the "
+                           f"frames' size), got {roi.shape[1]}x{roi.shape[0]}")
+        roi = inside if roi is None else np.where(roi > 0, inside, 0).astype(np.uint8)
     write_video = not source.is_dir() or is_bag
     with atomic_folder(Path(args.out), overwrite=args.overwrite) as tmp:
+        if circle is not None:  # the guess, for the user to read, reuse or replace
+            calib.save_opencv(camera, tmp / "calib.yaml")
+            cv2.imwrite(str(tmp / "roi.png"), roi)
         table = run_detect(frames, camera, matcher, tmp, road=road, params=params,
                            write_video=write_video, progress=not args.quiet, roi=roi,
                            camera_height=args.camera_height, fps=frames.fps, show=args.show)
@@ -313,6 +334,47 @@ def cmd_detect(args: argparse.Namespace) -> int:
     print(f"{len(table)} regions in {table['frame'].nunique()} frames; {road_note}; "
           f"written to {args.out}")
     return 0
+
+
+def _circle_fov(text: str) -> float | None:
+    """The field of view of ``--calib circle[:FOV]`` (degrees; 180 by default), or None where
+    ``text`` names a calibration file."""
+    if text != "circle" and not text.startswith("circle:"):
+        return None
+    if text == "circle":
+        return 180.0
+    try:
+        fov = float(text.split(":", 1)[1])
+    except ValueError:
+        fov = math.nan
+    if not (math.isfinite(fov) and 0 < fov < 360):
+        raise CliError(f"--calib: expected circle or circle:FOV with FOV in degrees in (0, 360), "
+                       f"got {text!r}")
+    return fov
+
+
+def _nominal_camera(frames, text: str) -> tuple[calib.CameraModel, calib.ImageCircle]:
+    """``--calib circle[:FOV]``: the nominal equidistant camera of the first frame's image
+    circle (:mod:`fisheyemotion.calib.circle`), said on stderr."""
+    fov = _circle_fov(text)
+    try:
+        first = next(iter(frames))
+    except StopIteration:
+        raise CliError("--calib circle: the input has no frames") from None
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    try:
+        circle = calib.find_image_circle(first.image)
+    except ValueError as exc:
+        raise CliError(f"--calib {text}: frame {first.index}: {exc}") from None
+    h, w = first.image.shape[:2]
+    camera = calib.nominal_camera(circle, w, h, fov_deg=fov)
+    print(f"fisheyemotion detect: --calib {text}: a nominal equidistant camera, the image circle "
+          f"of frame {first.index} (centre {circle.cx:.1f}, {circle.cy:.1f}, radius "
+          f"{circle.radius:.1f} px) {fov:g} deg across: f = {camera.fx:.2f} px; a guess of the "
+          "lens, not a calibration (written to OUT/calib.yaml, the circle to OUT/roi.png)",
+          file=sys.stderr)
+    return camera, circle
 
 
 def _detect_params(args: argparse.Namespace, camera: calib.CameraModel) -> Params:
@@ -374,7 +436,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("input", help="video file, folder of frames, sequence folder, ROS 1 .bag or "
                    "ROS 2 bag folder")
     p.add_argument("--calib", help="calibration file (default: INPUT/calib.yaml of a sequence, "
-                   "or the bag's CameraInfo)")
+                   "or the bag's CameraInfo), or circle[:FOV] for a circular fisheye without one: "
+                   "a nominal equidistant camera from the first frame's image circle, FOV "
+                   "degrees across (default 180)")
     p.add_argument("--camera", type=_camera_arg, default=0,
                    help="camera index or name in --calib (default: %(default)s)")
     p.add_argument("--poses", help="pose file: TUM, KITTI, EuRoC CSV, Aria CSV, MPS CSV (closed "
