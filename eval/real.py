@@ -173,18 +173,19 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
 
 
 def run_pairs(data: Path, params: Params | None = None, *, fov_deg: float = 180.0
-              ) -> pd.DataFrame | None:
+              ) -> tuple[pd.DataFrame, Figure] | None:
     """Detect on each uncalibrated frame pair of ``data/real/fisheye_mc_pairs`` (None if there
     are none): a nominal equidistant camera from the first frame's image circle
     (:mod:`fisheyemotion.calib.circle`, ``fov_deg`` across), the poses from the images, the
     consecutive frames compared, no road. Where the camera stands still, the frames' difference
     (more than ``CHANGED_LEVELS`` grey levels, smoothed 5x5) is what moved: the table gives the
-    share of it the detection covers and the share of the detection within 15 px of it."""
+    share of it the detection covers and the share of the detection within 15 px of it. Returns
+    the table (one row per pair) and a figure of each pair's annotated second frame."""
     root = data / "real" / PAIRS
     if not root.is_dir():
         return None
     params = Params(frame_gap=1) if params is None else params
-    rows = []
+    rows, shown = [], []
     for scene in sorted(p for p in root.iterdir() if p.is_dir()):
         frames = [f.image for f in ImageFolder(scene)]
         if len(frames) != 2:
@@ -213,7 +214,18 @@ def run_pairs(data: Path, params: Params | None = None, *, fov_deg: float = 180.
             row["flagged within 15 px of a change %"] = (
                 100 * float(near[flagged].mean()) if flagged.any() else np.nan)
         rows.append(row)
-    return pd.DataFrame(rows) if rows else None
+        shown.append((curr, result, f"{scene.name}: camera {row['camera (estimated)']}"))
+    if not rows:
+        return None
+    fig = Figure(figsize=(3.0 * len(shown), 3.3), layout="constrained")
+    for ax, (image, result, title) in zip(np.atleast_1d(fig.subplots(1, len(shown))), shown,
+                                          strict=True):
+        ax.imshow(draw.annotate(image, result)[..., ::-1])
+        ax.set_title(title, fontsize=8)
+        ax.set_axis_off()
+    fig.suptitle("Real frame pairs without a calibration: a nominal camera from the image "
+                 "circle, poses from the images; detected regions in green", fontsize=9)
+    return pd.DataFrame(rows), fig
 
 
 def _percent(shares: list[float]) -> float:

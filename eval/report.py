@@ -354,7 +354,7 @@ def _png(fig: Figure, path: Path) -> bytes:
 def write_report(results: list[SequenceResult], out: str | Path, params: Params, *,
                  title: str = "fisheyemotion evaluation", commands: list[str] | None = None,
                  real: tuple[pd.DataFrame, Figure | None] | None = None,
-                 pairs: pd.DataFrame | None = None) -> Path:
+                 pairs: tuple[pd.DataFrame, Figure] | None = None) -> Path:
     """Write ``report.html`` (self-contained), ``report.md``, CSV tables and PNG figures
     (``real``: :func:`~fisheyemotion.eval.real.run_real`'s; ``pairs``:
     :func:`~fisheyemotion.eval.real.run_pairs`')."""
@@ -383,6 +383,8 @@ def write_report(results: list[SequenceResult], out: str | Path, params: Params,
         figures["fig6.png"] = grid
     if real is not None and real[1] is not None:
         figures["real.png"] = real[1]
+    if pairs is not None:
+        figures["real_pairs.png"] = pairs[1]
     images = {name: _png(fig, out / name) for name, fig in figures.items()}
     notes = diagnose(results, params)
     det_cols = [c for c in groups.columns if c.endswith((" det.", " cov."))]
@@ -459,7 +461,7 @@ def write_report(results: list[SequenceResult], out: str | Path, params: Params,
             md += ["", "![Figure 5. Detections on the real clips (green), with their own "
                    "poses.](real.png)"]
     if pairs is not None:
-        pairs.to_csv(out / "real_pairs.csv", index=False)
+        pairs[0].to_csv(out / "real_pairs.csv", index=False)
         md += ["", "## Real frame pairs without a calibration (data/real/fisheye_mc_pairs)", "",
                "Circular 180-degree fisheye frame pairs with no calibration and no poses: each "
                "runs with a nominal equidistant camera from its first frame's image circle "
@@ -469,8 +471,11 @@ def write_report(results: list[SequenceResult], out: str | Path, params: Params,
                "20 grey levels): the share of those pixels flagged, and the share of the "
                "flagged pixels within 15 px of them. Where it moves, nothing but the "
                "operator, who moves with the camera, should be flagged.", "",
-               pairs.astype(object).where(pairs.notna(), None).to_markdown(
+               pairs[0].astype(object).where(pairs[0].notna(), None).to_markdown(
                    index=False, floatfmt=".2f", missingval="–")]
+        if "real_pairs.png" in images:
+            md += ["", "![Figure 6. Detections on the real frame pairs (green), on each pair's "
+                   "second frame.](real_pairs.png)"]
     md += ["", "## Where we fall short of the paper's Table 2", ""]
     md += [f"- {n}" for n in notes] or ["- Nowhere: every rate is at or above the paper's."]
     md += ["", "## Ablation: the paper's weights and each constraint alone", "",

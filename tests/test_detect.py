@@ -186,15 +186,18 @@ def test_drawing_returns_bgr_images_and_the_fig6_layout(pair):
     assert len(fig.axes) == 2 * 8 + 1 and "green" in fig._supxlabel.get_text()  # + truth row
 
 
-def test_detect_cli_on_a_sequence_folder(tmp_path, pair):
+def test_detect_cli_on_a_sequence_folder(tmp_path, pair, capsys):
     seq = synth.write_sequence(tmp_path / "seq", CAM, PAIR, frames=3, progress=False)
     out = tmp_path / "out"
     assert main(["detect", str(seq), "--out", str(out), "--quiet", "--road", "z0"]) == 0
-    # One output per input frame, named like it; empty masks while the frame gap (3) fills.
+    # Three frames, fewer than the frame gap (3) needs: compared at a gap of 2, said so. One
+    # output per input frame, named like it; empty masks while that gap fills.
+    assert "the input has 3 frames: frame gap 2 instead of 3" in capsys.readouterr().err
     assert sorted(p.name for p in (out / "annotated").glob("*.png")) == [
         "000000.png", "000001.png", "000002.png"]
-    with np.load(out / "likelihood" / "000002.npz") as z:
-        assert not z["mask"].any()
+    for name, moving in (("000001", False), ("000002", True)):
+        with np.load(out / "likelihood" / f"{name}.npz") as z:
+            assert z["mask"].any() == moving
     (tmp_path / "p.yaml").write_text("frame_gap: 1\nflow: dis\n")
     args = ["detect", str(seq), "--out", str(out), "--quiet", "--road", "z0", "--params",
             str(tmp_path / "p.yaml")]

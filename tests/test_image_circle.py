@@ -114,7 +114,9 @@ def test_the_lab_scenes_camera_has_one_circle():
 def pairs_table():
     from fisheyemotion.eval.real import run_pairs
 
-    return run_pairs(PAIRS.parents[1]).set_index("pair")
+    table, figure = run_pairs(PAIRS.parents[1])
+    assert len(figure.axes) == len(SCENES)
+    return table.set_index("pair")
 
 
 @pytest.mark.parametrize("scene", ["object_forward", "object_lateral"])
