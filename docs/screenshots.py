@@ -3,8 +3,8 @@
 ``make screenshots`` (after ``make demo``), or ``python docs/screenshots.py [report.html]``:
 renders the page in a 1280-pixel-wide window and writes it, cut into screen-high tiles, to
 ``docs/img/report_<n>.png``, and copies the report's figures that docs/ shows
-(``docs/img/eval_*.png``, ``docs/img/real_aria.png``). Needs Debian's ``chromium``
-(``apt-get install chromium``).
+(``docs/img/eval_*.png``, ``docs/img/real_aria.png``, ``docs/img/real_pairs.png``). Needs
+Debian's ``chromium`` (``apt-get install chromium``).
 """
 
 from __future__ import annotations
@@ -23,7 +23,8 @@ OUT = Path(__file__).parent / "img"
 WIDTH, TILE = 1280, 1600
 #: The report's figures shown in docs/, by their name there.
 FIGURES = {"table2.png": "eval_table2.png", "pr.png": "eval_pr.png",
-           "scenes.png": "eval_scenes.png", "fig6.png": "eval_fig6.png", "real.png": "real_aria.png"}
+           "scenes.png": "eval_scenes.png", "fig6.png": "eval_fig6.png", "real.png": "real_aria.png",
+           "real_pairs.png": "real_pairs.png"}
 # Flags for a machine with no network and no display; --no-sandbox because CI runs as root.
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
          "--disable-background-networking", "--disable-component-update", "--disable-sync",
