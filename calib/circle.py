@@ -117,6 +117,8 @@ def find_image_circle(image: NDArray[np.uint8]) -> ImageCircle:
     """
     gray = _gray(image, "image")
     h, w = gray.shape
+    if min(h, w) < 16:
+        raise ValueError(f"image: expected a frame of at least 16x16 pixels, got {w}x{h}")
     smooth = cv2.GaussianBlur(gray, (0, 0), 1.5)
     # First guess: the largest lit component (Otsu's threshold, halved: dim content inside the
     # disc stays lit, the dark ring does not), closed over small gaps, and its enclosing circle.

@@ -60,7 +60,9 @@ def test_a_bgr_frame_gives_the_grey_frames_circle():
     (np.zeros((480, 640), np.uint8), "image: no image circle"),
     (np.zeros((480, 640), np.float32), "image: expected a uint8 image"),
     (np.zeros((480, 640, 2), np.uint8), "image: expected shape"),
-], ids=["full frame", "black", "float", "two channels"])
+    (np.zeros((0, 0), np.uint8), "image: expected a frame of at least 16x16"),
+    (cv2.rectangle(np.zeros((480, 640), np.uint8), (100, 50), (500, 400), 200, -1), "circular"),
+], ids=["full frame", "black", "float", "two channels", "empty", "a lit square"])
 def test_no_image_circle_is_a_value_error_naming_the_image(image, match):
     with pytest.raises(ValueError, match=match):
         fm.calib.find_image_circle(image)
