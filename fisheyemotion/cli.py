@@ -357,12 +357,16 @@ def _nominal_camera(frames, text: str) -> tuple[calib.CameraModel, calib.ImageCi
     """``--calib circle[:FOV]``: the nominal equidistant camera of the first frame's image
     circle (:mod:`fisheyemotion.calib.circle`), said on stderr."""
     fov = _circle_fov(text)
+    source = iter(frames)
     try:
-        first = next(iter(frames))
+        first = next(source)
     except StopIteration:
         raise CliError("--calib circle: the input has no frames") from None
     except ValueError as exc:
         raise CliError(str(exc)) from None
+    finally:
+        if hasattr(source, "close"):  # a video's or a bag's reader: released now
+            source.close()
     try:
         circle = calib.find_image_circle(first.image)
     except ValueError as exc:
