@@ -168,31 +168,38 @@ def test_render_peer_farneback(benchmark, frames):
 
 
 @pytest.mark.benchmark(group="stream-640x480")
+@pytest.mark.parametrize("poses", ["given", "estimated"])
 @pytest.mark.parametrize("threads", [1, 2], ids=["1t", "2t"])
 @pytest.mark.parametrize("name", ["dis-ultrafast", "farneback"])
 @pytest.mark.parametrize("api", ["apply", "stream"])
-def test_stream_640x480(benchmark, frames, name, threads, api):
+def test_stream_640x480(benchmark, frames, name, threads, api, poses):
     """``Params()`` as a user streams it, frame by frame with ``MotionDetector.apply`` or with
     ``MotionDetector.stream`` (each pair's decision beside the next pair's flow, in a second
     Python thread): frames per second (extra_info) over the frames after the gap and the scene
-    model have filled."""
+    model have filled; with the scene's poses, or none (``pose=None``: estimated from the
+    images, the camera's height given; Farneback at one thread only)."""
+    if poses == "estimated" and (name != "farneback" or threads != 1):
+        pytest.skip("poses from the images: Farneback at one thread")
     fr, roi = frames
     grays = [_gray(f) for f in fr]
     half = STREAM_WARMUP
+    pose = {k: fr[k].pose if poses == "given" else None for k in range(STREAM_FRAMES)}
 
     def setup():
-        det = fm.MotionDetector(CAM, params=fm.Params(**CONFIGS[name]), roi=roi)
+        det = fm.MotionDetector(CAM, road="auto" if poses == "estimated" else None,
+                                params=fm.Params(**CONFIGS[name]), roi=roi,
+                                camera_height=0.9 if poses == "estimated" else None)
         for k in range(half):
-            det.apply(grays[k], fr[k].pose)
+            det.apply(grays[k], pose[k])
         return (det,), {}
 
     def run(det):
         if api == "stream":
-            for _ in det.stream((grays[k], fr[k].pose) for k in range(half, STREAM_FRAMES)):
+            for _ in det.stream((grays[k], pose[k]) for k in range(half, STREAM_FRAMES)):
                 pass
             return
         for k in range(half, STREAM_FRAMES):
-            det.apply(grays[k], fr[k].pose)
+            det.apply(grays[k], pose[k])
 
     benchmark.pedantic(run, setup=setup, rounds=8, warmup_rounds=1)
     if benchmark.stats is None:  # --benchmark-disable: run once, nothing timed

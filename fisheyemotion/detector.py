@@ -66,6 +66,11 @@ from .static_scene import TRIANGULATION_PARALLAX, StaticScene, triangulate_range
 
 #: Share of the image flagged moving above which a given road (or the poses) is suspect.
 FLOODED = 0.5
+#: The width of the image, as a share, by which the mask a pose step excludes is widened: it is
+#: the result of the frame before the previous one (:meth:`MotionDetector._exclusion`), and its
+#: objects have moved by a frame since (16 px at 640 px: a car crossing 5 m away at 30 km/h,
+#: 15 fps, moves about that far).
+EXCLUSION_MARGIN = 0.025
 
 #: Relative range difference within which a cell agrees with the static-scene model.
 SCENE_AGREEMENT = 0.05
@@ -167,7 +172,11 @@ class MotionDetector:
         self._road_warned = False
         self._tracker: PoseTracker | None = None
         self._refiner: PoseRefiner | None = None
-        self._last_mask: NDArray[np.bool_] | None = None
+        # The frames taken in so far, and the cell masks of the last two results by the frame
+        # they belong to: a frame's pose step excludes the mask of the frame two before it
+        # (:meth:`_exclusion`).
+        self._taken = 0
+        self._masks: deque[tuple[int, NDArray[np.bool_]]] = deque(maxlen=2)
         self.last_pose: NDArray[np.float64] | None = None
         self._pixel_angle: NDArray[np.float64] | None = None
         self._view: NDArray[np.bool_] | None = None
@@ -215,7 +224,7 @@ class MotionDetector:
         if pair is None:
             return None
         result = self._detect_gray(*pair, stream=True)
-        self._last_mask = result.cell_mask > 0
+        self._masks.append((self._taken - 1, result.cell_mask > 0))
         return result
 
     def stream(self, items: Iterable[tuple[NDArray[np.uint8], NDArray | None]]
@@ -228,9 +237,10 @@ class MotionDetector:
         frame for the pair that begins with it) in a second thread, the next
         pair's flow is computed: it needs only the static-scene model, which the pair updated
         before its decision. Both threads spend most of their time in OpenCV and in numba
-        kernels, which release the GIL. Streams whose next pose depends on the last mask
-        (``pose=None``, or ``params.pose_refinement`` not ``off``) run one frame after the
-        other, as ``apply``. After each result is yielded, :attr:`last_pose` is its pose. A
+        kernels, which release the GIL. Streams that estimate or refine their poses do too: a
+        frame's pose step excludes what the result two frames before found moving
+        (:meth:`_exclusion`), which is decided by then. After each result is yielded,
+        :attr:`last_pose` is its pose. A
         refused frame or pose raises ``ValueError`` after the results of the frames before it;
         a consumer that leaves early has had one frame more taken in than it was given results
         for: that frame is detected on leaving, unseen, so the detector goes on as ``apply``
@@ -240,18 +250,20 @@ class MotionDetector:
         ...     if result is not None:  # None while the frame gap fills
         ...         cv2.imwrite(f"mask_{k:06d}.png", result.mask)
         """
-        pending: tuple[Future, NDArray] | None = None  # the decision under way, its pose
+        # The decision under way: its future, its pose and the frame it belongs to.
+        pending: tuple[Future, NDArray, int] | None = None
         taken = None  # a pair whose flow is measured, until its own decision is under way
 
-        def record(result: Detection, pose: NDArray) -> Detection:
-            self._last_mask, self.last_pose = result.cell_mask > 0, pose
+        def record(result: Detection, pose: NDArray, index: int) -> Detection:
+            self._masks.append((index, result.cell_mask > 0))
+            self.last_pose = pose
             return result
 
         def flush():  # the decision under way, if any, as the next result
             nonlocal pending
             if pending is not None:
-                (future, pose), pending = pending, None
-                yield record(future.result(), pose)
+                (future, pose, index), pending = pending, None
+                yield record(future.result(), pose, index)
 
         def measure(flow, backward, g0, g1, t0, t1) -> _Measured:
             return self._measure(flow, t0, t1, backward, g0, curr=g1, stream=True)
@@ -262,24 +274,23 @@ class MotionDetector:
                 while True:
                     try:
                         frame, pose = _pair_item(next(items))
-                        if (pose is None or self._tracker is not None
-                                or self.params.pose_refinement != "off"):
-                            yield from flush()  # this pose needs the last mask
+                        if pending is not None and self._waits_for_last(pose):
+                            yield from flush()  # the first result: this pose excludes it
                         pair = self._take(frame, pose)
                     except StopIteration:
                         break
                     except Exception:  # a refused frame or pose: the results before it first
                         yield from flush()
                         raise
-                    world = self.last_pose
-                    if pair is not None:
-                        taken = (*self._pair_flow(*pair), *pair), world  # beside the decision
+                    world, index = self.last_pose, self._taken - 1
+                    if pair is not None:  # its flow beside the decision
+                        taken = (*self._pair_flow(*pair), *pair), world, index
                     yield from flush()
                     self.last_pose = world
                     if pair is None:  # the frame gap is filling
                         yield None
                         continue
-                    pending = (pool.submit(self._decide, measure(*taken[0])), world)
+                    pending = (pool.submit(self._decide, measure(*taken[0])), world, index)
                     taken = None
                 yield from flush()
             finally:
@@ -287,9 +298,9 @@ class MotionDetector:
                 # apply() would, their results unseen.
                 with contextlib.suppress(Exception):
                     if pending is not None:
-                        record(pending[0].result(), pending[1])
+                        record(pending[0].result(), pending[1], pending[2])
                     if taken is not None:
-                        record(self._decide(measure(*taken[0])), taken[1])
+                        record(self._decide(measure(*taken[0])), taken[1], taken[2])
 
     def _take(self, frame: NDArray[np.uint8], pose: NDArray | None
               ) -> tuple[NDArray[np.uint8], NDArray[np.uint8], NDArray, NDArray] | None:
@@ -313,7 +324,7 @@ class MotionDetector:
                                                 mask=self._pixel_valid,
                                                 camera_height=self.camera_height)
                 # The road as given, not as estimated from the refined poses themselves.
-                t = self._refiner.step(gray, t, self._last_mask,
+                t = self._refiner.step(gray, t, self._exclusion(),
                                        road=self.road if self.ground is None else None)
                 anchor = self._refiner.anchor
         world = t if anchor is None else anchor @ t
@@ -325,6 +336,7 @@ class MotionDetector:
             self._bootstrap_scene([(g, q if anchor is None else anchor @ q)
                                    for g, q in self._history] + [(gray, world)])
         self._history.append((gray, t))
+        self._taken += 1
         if prev is None:
             return None
         return prev, gray, prev_pose if anchor is None else anchor @ prev_pose, world
@@ -367,7 +379,29 @@ class MotionDetector:
                               "without camera_height: the road terms are off (Road.unknown())",
                               stacklevel=3)
                 self.road, self.ground = Road.unknown(), None
-        return self._tracker(gray, self._last_mask)
+        return self._tracker(gray, self._exclusion())
+
+    def _exclusion(self) -> NDArray[np.bool_] | None:
+        """Pixels of the previous frame that the pose step of the frame being taken in leaves
+        out: what the result of the frame before the previous one found moving (its cell mask),
+        widened by ``EXCLUSION_MARGIN`` of the image width for the frame its objects have
+        moved since; where that frame has none, the previous frame's own (the first result),
+        else None. Not the previous frame's result otherwise: a stream decides that one beside
+        this frame's flow (:meth:`stream`), and ``apply`` reads the same frame's so that both
+        give the same poses."""
+        masks = dict(self._masks)
+        if self._taken - 2 in masks:
+            r = max(1, round(EXCLUSION_MARGIN * self.size[0]))
+            kernel = np.ones((2 * r + 1, 2 * r + 1), np.uint8)  # a square: 0.1 ms, a disc 2 ms
+            return cv2.dilate(masks[self._taken - 2].view(np.uint8), kernel) > 0
+        return masks.get(self._taken - 1)  # the stream's first result: waited for
+
+    def _waits_for_last(self, pose: NDArray | None) -> bool:
+        """Whether the pose step of the frame about to be taken in (given ``pose``) needs the
+        previous frame's result (:meth:`_exclusion`: the first result of a stream that
+        estimates or refines its poses)."""
+        uses = pose is None or self._tracker is not None or self.params.pose_refinement != "off"
+        return uses and all(index != self._taken - 2 for index, _ in self._masks)
 
     def reset(self) -> None:
         """Forget the stream's previous frames, its temporal state, its scene model and its
@@ -377,7 +411,9 @@ class MotionDetector:
         self._textures.clear()
         self._ranges.clear()
         self._temporal = None
-        self._tracker, self._last_mask, self.last_pose = None, None, None
+        self._tracker, self.last_pose = None, None
+        self._taken = 0
+        self._masks.clear()
         self._refiner = None
         if self.scene is not None:
             self.scene.clear()

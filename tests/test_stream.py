@@ -117,6 +117,53 @@ def test_stream_without_poses_equals_apply(frames):
     _assert_same(expected, got)
 
 
+def test_stream_refining_its_poses_equals_apply(frames):
+    rng = np.random.default_rng(4)
+    items = []
+    for f in frames:  # each pose turned by about 0.3 deg: the refinement has work to do
+        pose = f.pose.copy()
+        pose[:3, :3] = pose[:3, :3] @ cv2.Rodrigues(rng.normal(0, 0.003, 3))[0]
+        items.append((f.image, pose))
+    params = PARAMS.replace(pose_refinement="on")
+    expected = _applied(fm.MotionDetector(CAM, params=params), items)
+    assert sum(r is not None and r.mask.any() for r, _ in expected) >= 3
+    _assert_same(expected, _streamed(fm.MotionDetector(CAM, params=params), items))
+
+
+def test_a_stream_without_poses_decides_beside_the_next_pairs_flow(frames, monkeypatch):
+    """A frame's pose step excludes the result two frames before it, so estimating the poses
+    does not stop the stream deciding one pair while it measures the next: each decision after
+    the first waits here until the next pair's flow has started (it would wait for ever if the
+    stream ran one frame after the other, as it did before 0.8.7)."""
+    flows, waited = [], []
+    pair_flow, decide = fm.MotionDetector._pair_flow, fm.MotionDetector._decide
+    started = threading.Condition()
+
+    def flow(self, *args):
+        with started:
+            flows.append(threading.current_thread().name)
+            started.notify_all()
+        return pair_flow(self, *args)
+
+    pairs = len(frames) - PARAMS.frame_gap
+
+    def deciding(self, measured):
+        i = len(waited)
+        if 1 <= i < pairs - 1:
+            with started:
+                waited.append(started.wait_for(lambda: len(flows) >= i + 2, timeout=5))
+        else:
+            waited.append(None)
+        return decide(self, measured)
+
+    monkeypatch.setattr(fm.MotionDetector, "_pair_flow", flow)
+    monkeypatch.setattr(fm.MotionDetector, "_decide", deciding)
+    with pytest.warns(UserWarning, match="scale is unknown"):
+        got = _streamed(fm.MotionDetector(CAM, params=PARAMS), [(f.image, None) for f in frames])
+    assert sum(r is not None for r, _ in got) == pairs
+    assert [w for w in waited if w is not None] == [True] * (pairs - 2)
+
+
 def test_leaving_a_stream_early_leaves_the_detector_as_apply_would(frames):
     items = [(f.image, f.pose) for f in frames]
     expected = _applied(fm.MotionDetector(CAM, params=PARAMS), items)
