@@ -33,7 +33,8 @@ def track_corners(gray0: NDArray[np.uint8], gray1: NDArray[np.uint8], *,
                   mask: NDArray | None = None, corners: int = 600,
                   min_distance: int = 7, fb_tolerance: float = 0.5,
                   predict: Callable[[NDArray[np.float64]], NDArray[np.float64]] | None = None,
-                  detect_scale: int = 1, iterations: int = 20, backward: bool = True
+                  detect_scale: int = 1, iterations: int = 20, backward: bool = True,
+                  levels: int | None = None
                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Corners of ``gray0`` (where ``mask`` is non-zero) and where they are in ``gray1``.
 
@@ -48,6 +49,9 @@ def track_corners(gray0: NDArray[np.uint8], gray1: NDArray[np.uint8], *,
     ``backward``: each track is tracked back from ``gray1`` and kept only if it returns within
     ``fb_tolerance`` pixels of its corner (twice the work); without it, every track Lucas-Kanade
     reports found is kept.
+
+    ``levels``: the pyramid levels above the full resolution that Lucas-Kanade starts from
+    (default: 4 without ``predict``, 1 with it).
 
     Returns
     -------
@@ -73,6 +77,8 @@ def track_corners(gray0: NDArray[np.uint8], gray1: NDArray[np.uint8], *,
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, iterations, 0.01)
     if predict is None:
         lk = {**_LK, "criteria": criteria}
+        if levels is not None:
+            lk["maxLevel"] = int(levels)
         fwd, ok1, _ = cv2.calcOpticalFlowPyrLK(gray0, gray1, found, None, **lk)
         back, ok2 = found, ok1
         if backward:
@@ -84,6 +90,8 @@ def track_corners(gray0: NDArray[np.uint8], gray1: NDArray[np.uint8], *,
         # From a guess only fine levels: a coarse level would lead a patch that the perspective
         # deforms (the road near the camera) away from it.
         guessed = {**_LK_GUESSED, "criteria": criteria}
+        if levels is not None:
+            guessed["maxLevel"] = int(levels)
         fwd, ok1, _ = cv2.calcOpticalFlowPyrLK(gray0, gray1, found, guess,
                                                flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **guessed)
         # Back with the predicted displacement reversed (not from the corners themselves).
