@@ -71,13 +71,14 @@ class PlaneModel:
 
 
 #: The road's corner tracking once a road is found (the next frame warped by it): Lucas-Kanade
-#: from one pyramid level, 10 iterations a level, corners found at half resolution. Measured
-#: (`docs/measurements.py road_estimates`, the first 12 frames; tilt median / 90th percentile,
-#: tracking time a pair): on its six scenes, OpenCV's four levels 0.008 / 0.022 deg, 14.2 ms;
-#: one level 0.005 / 0.013 deg, 6.9 ms; and the rest 0.004 / 0.010 deg, 4.1 ms; on six other
-#: demo scenes, one level 0.004 / 0.017 deg, 6.2 ms, and the rest 0.005 / 0.017 deg, 4.0 ms.
-#: The backward check stays: without it 0.012 / 0.039 deg.
-ROAD_TRACKING = {"levels": 1, "iterations": 10, "detect_scale": 2}
+#: from one pyramid level, 10 iterations a level. Measured (`docs/measurements.py
+#: road_estimates`, the first 12 frames; tilt median / 90th percentile, tracking time a pair):
+#: on its six scenes, OpenCV's four levels and 20 iterations 0.008 / 0.022 deg, 14.2 ms; one
+#: level 0.005 / 0.013 deg, 6.9 ms; and 10 iterations 0.004 / 0.012 deg; on six other demo
+#: scenes, 0.004 / 0.017 and 0.004 / 0.016 deg. Corners found at half resolution as well were
+#: faster still (4 ms) but, on a 320x240 camera, tilted the road up to 0.12 deg; without the
+#: backward check the road was 0.012 / 0.039 deg off.
+ROAD_TRACKING = {"levels": 1, "iterations": 10}
 
 #: Metres below the camera of the provisional road while none is known (and no height given).
 PROVISIONAL_HEIGHT = 1.0
@@ -225,10 +226,9 @@ class GroundEstimator:
         prior, _ = self._prior(pose0, pose1, road)
         warped = warp_by(gray1, prior)
         # Warped by the road found, a road corner is within a pixel or two of its place: the
-        # pyramid's coarse levels only lead patches away, and fewer iterations and corners
-        # found at half resolution do (ROAD_TRACKING). Warped by the provisional road, whose
-        # height is a guess, the displacements left can be tens of pixels near the camera: the
-        # full pyramid, every corner, OpenCV's iterations.
+        # pyramid's coarse levels only lead patches away, and half the iterations do
+        # (ROAD_TRACKING). Warped by the provisional road, whose height is a guess, the
+        # displacements left can be tens of pixels near the camera: the full pyramid.
         settled = ROAD_TRACKING if self.road is not None else {}
         u0, r = track_corners(gray0, warped, mask=lower, **settled)
         if not len(u0):
