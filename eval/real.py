@@ -159,17 +159,25 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
                             "no poses, ground truth: static flagged %":
                             _percent([t[0] for t in truth])})
         rows.append(row)
-    fig = None
-    if shown:
-        fig = Figure(figsize=(3.4 * len(shown), 3.6), layout="constrained")
-        axes = np.atleast_1d(fig.subplots(1, len(shown)))
-        for ax, (image, result, title) in zip(axes, shown, strict=True):
-            ax.imshow(draw.annotate(image, result)[..., ::-1])
-            ax.set_title(title, fontsize=8)
-            ax.set_axis_off()
-        fig.suptitle("Real fisheye clips (Project Aria): detected regions in green, no road "
-                     "(indoors, head-mounted)", fontsize=9)
+    fig = _annotated_figure(shown, "Real fisheye clips (Project Aria): detected regions in "
+                            "green, no road (indoors, head-mounted)", (3.4, 3.6))
     return pd.DataFrame(rows), fig
+
+
+def _annotated_figure(shown: list[tuple[np.ndarray, object, str]], title: str,
+                      size: tuple[float, float]) -> Figure | None:
+    """One panel per ``(frame, result, caption)`` of ``shown``: the frame annotated with the
+    result's regions; ``size`` (inches) per panel. None for nothing shown."""
+    if not shown:
+        return None
+    fig = Figure(figsize=(size[0] * len(shown), size[1]), layout="constrained")
+    for ax, (image, result, caption) in zip(np.atleast_1d(fig.subplots(1, len(shown))), shown,
+                                            strict=True):
+        ax.imshow(draw.annotate(image, result)[..., ::-1])
+        ax.set_title(caption, fontsize=8)
+        ax.set_axis_off()
+    fig.suptitle(title, fontsize=9)
+    return fig
 
 
 def run_pairs(data: Path, params: Params | None = None, *, fov_deg: float = 180.0
@@ -217,15 +225,9 @@ def run_pairs(data: Path, params: Params | None = None, *, fov_deg: float = 180.
         shown.append((curr, result, f"{scene.name}: camera {row['camera (estimated)']}"))
     if not rows:
         return None
-    fig = Figure(figsize=(3.0 * len(shown), 3.3), layout="constrained")
-    for ax, (image, result, title) in zip(np.atleast_1d(fig.subplots(1, len(shown))), shown,
-                                          strict=True):
-        ax.imshow(draw.annotate(image, result)[..., ::-1])
-        ax.set_title(title, fontsize=8)
-        ax.set_axis_off()
-    fig.suptitle("Real frame pairs without a calibration: a nominal camera from the image "
-                 "circle, poses from the images; detected regions in green", fontsize=9)
-    return pd.DataFrame(rows), fig
+    return pd.DataFrame(rows), _annotated_figure(
+        shown, "Real frame pairs without a calibration: a nominal camera from the image circle, "
+        "poses from the images; detected regions in green", (3.0, 3.3))
 
 
 def _percent(shares: list[float]) -> float:

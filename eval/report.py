@@ -351,6 +351,19 @@ def _png(fig: Figure, path: Path) -> bytes:
     return data
 
 
+def _real_section(table: pd.DataFrame, out: Path, name: str, images: dict[str, bytes],
+                  heading: str, text: str, caption: str) -> list[str]:
+    """A real-data section of the report: ``table`` written to ``out/<name>.csv`` and shown under
+    ``heading`` after ``text``, then the figure ``<name>.png`` if there is one."""
+    table.to_csv(out / f"{name}.csv", index=False)
+    md = ["", f"## {heading}", "", text, "",
+          table.astype(object).where(table.notna(), None).to_markdown(
+              index=False, floatfmt=".2f", missingval="–")]
+    if f"{name}.png" in images:
+        md += ["", f"![{caption}]({name}.png)"]
+    return md
+
+
 def write_report(results: list[SequenceResult], out: str | Path, params: Params, *,
                  title: str = "fisheyemotion evaluation", commands: list[str] | None = None,
                  real: tuple[pd.DataFrame, Figure | None] | None = None,
@@ -444,38 +457,31 @@ def write_report(results: list[SequenceResult], out: str | Path, params: Params,
                "ground truth: green true, red false, blue missed. When the camera stands still "
                "(static column) only |p'xp| is scored, so rows II-V are empty.](fig6.png)"]
     if real is not None:
-        real[0].to_csv(out / "real.csv", index=False)
-        md += ["", "## Real fisheye clips (Project Aria, data/real)", "",
-               "The office clip has no ground-truth masks: the wearer's arm is its only moving "
-               "object, so the share of pixels flagged outside the largest region bounds the "
-               "static background flagged. The apartment clip has the Aria Digital Twin's ground "
-               "truth: \"ground truth: static flagged\" is the flagged share of its static pixels "
-               f"outside the wearer's box and more than {TOLERANCE_PX} px from the objects that "
-               "move (a spoon and a fork). Indoors and head-mounted: no road (epipolar and "
-               "positive-depth constraints only), consecutive frames. Each clip runs with its own "
-               "(VIO) poses and with none: the \"no poses\" columns, poses estimated from the "
-               "images and their rotations compared with the VIO's.", "",
-               real[0].astype(object).where(real[0].notna(), None).to_markdown(
-                   index=False, floatfmt=".2f", missingval="–")]
-        if "real.png" in images:
-            md += ["", "![Figure 5. Detections on the real clips (green), with their own "
-                   "poses.](real.png)"]
+        md += _real_section(
+            real[0], out, "real", images, "Real fisheye clips (Project Aria, data/real)",
+            "The office clip has no ground-truth masks: the wearer's arm is its only moving "
+            "object, so the share of pixels flagged outside the largest region bounds the "
+            "static background flagged. The apartment clip has the Aria Digital Twin's ground "
+            "truth: \"ground truth: static flagged\" is the flagged share of its static pixels "
+            f"outside the wearer's box and more than {TOLERANCE_PX} px from the objects that "
+            "move (a spoon and a fork). Indoors and head-mounted: no road (epipolar and "
+            "positive-depth constraints only), consecutive frames. Each clip runs with its own "
+            "(VIO) poses and with none: the \"no poses\" columns, poses estimated from the "
+            "images and their rotations compared with the VIO's.",
+            "Figure 5. Detections on the real clips (green), with their own poses.")
     if pairs is not None:
-        pairs[0].to_csv(out / "real_pairs.csv", index=False)
-        md += ["", "## Real frame pairs without a calibration (data/real/fisheye_mc_pairs)", "",
-               "Circular 180-degree fisheye frame pairs with no calibration and no poses: each "
-               "runs with a nominal equidistant camera from its first frame's image circle "
-               "(`fisheyemotion.calib.nominal_camera`, 180 degrees across; a guess of the "
-               "lens, not a calibration), the poses from the images, no road. Where the "
-               "camera stands still, what moved is where the two frames differ (by more than "
-               "20 grey levels): the share of those pixels flagged, and the share of the "
-               "flagged pixels within 15 px of them. Where it moves, nothing but the "
-               "operator, who moves with the camera, should be flagged.", "",
-               pairs[0].astype(object).where(pairs[0].notna(), None).to_markdown(
-                   index=False, floatfmt=".2f", missingval="–")]
-        if "real_pairs.png" in images:
-            md += ["", "![Figure 6. Detections on the real frame pairs (green), on each pair's "
-                   "second frame.](real_pairs.png)"]
+        md += _real_section(
+            pairs[0], out, "real_pairs", images,
+            "Real frame pairs without a calibration (data/real/fisheye_mc_pairs)",
+            "Circular 180-degree fisheye frame pairs with no calibration and no poses: each "
+            "runs with a nominal equidistant camera from its first frame's image circle "
+            "(`fisheyemotion.calib.nominal_camera`, 180 degrees across; a guess of the lens, "
+            "not a calibration), the poses from the images, no road. Where the camera stands "
+            "still, what moved is where the two frames differ (by more than 20 grey levels): "
+            "the share of those pixels flagged, and the share of the flagged pixels within 15 "
+            "px of them. Where it moves, nothing but the operator, who moves with the camera, "
+            "should be flagged.",
+            "Figure 6. Detections on the real frame pairs (green), on each pair's second frame.")
     md += ["", "## Where we fall short of the paper's Table 2", ""]
     md += [f"- {n}" for n in notes] or ["- Nowhere: every rate is at or above the paper's."]
     md += ["", "## Ablation: the paper's weights and each constraint alone", "",
