@@ -174,6 +174,23 @@ def test_cli_on_frames_without_an_image_circle_says_so(tmp_path, capsys):
     assert "--calib circle: frame 0: image: no image circle" in capsys.readouterr().err
 
 
+def test_cli_intersects_a_given_roi_with_the_circle_and_checks_its_size(tmp_path, capsys):
+    half = np.zeros((640, 640), np.uint8)
+    half[:, :320] = 255
+    cv2.imwrite(str(tmp_path / "left.png"), half)
+    out = tmp_path / "out"
+    assert main(["detect", str(PAIRS / "object_forward"), "--calib", "circle", "--roi",
+                 str(tmp_path / "left.png"), "--out", str(out), "--quiet"]) == 0
+    roi = cv2.imread(str(out / "roi.png"), cv2.IMREAD_GRAYSCALE)
+    circle = fm.calib.find_image_circle(_pair("object_forward")[0])
+    assert (roi == np.where(half > 0, circle.mask(640, 640), 0)).all() and roi[:, 320:].max() == 0
+    cv2.imwrite(str(tmp_path / "small.png"), half[:480])
+    code = main(["detect", str(PAIRS / "object_forward"), "--calib", "circle", "--roi",
+                 str(tmp_path / "small.png"), "--out", str(tmp_path / "o2"), "--quiet"])
+    assert code == 2 and "--roi: expected a 640x640 mask" in capsys.readouterr().err
+    assert not (tmp_path / "o2").exists()
+
+
 def test_cli_refuses_a_single_frame(tmp_path, capsys):
     frames = tmp_path / "frames"
     frames.mkdir()
