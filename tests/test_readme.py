@@ -31,4 +31,3 @@ def test_the_readme_python_block_runs_as_written(tmp_path):
     written = cv2.imread(str(tmp_path / "moving.png"))
     assert written is not None and written.shape == (480, 640, 3)
     assert namespace["mask"].dtype == np.uint8 and namespace["mask"].any()
-
