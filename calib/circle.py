@@ -30,7 +30,8 @@ on its rays, nor do rays that leave the frame first (a cropped circle); a lens's
 circle is good to a pixel or two, not to a tenth. On the real 640x640 frame pairs of
 ``data/real/fisheye_mc_pairs`` both frames of a pair give the same circle within 0.6 px. A frame
 whose lit area fills its corners (a full-frame fisheye or a pinhole camera) has no image
-circle: ValueError.
+circle, nor has a frame with two lit discs of about one size (a dual-fisheye 360-degree camera's
+frame: each half is a camera of its own): ValueError.
 """
 
 from __future__ import annotations
@@ -128,7 +129,11 @@ def find_image_circle(image: NDArray[np.uint8]) -> ImageCircle:
     n, labels, stats, _ = cv2.connectedComponentsWithStats(lit, connectivity=8)
     if n < 2:
         raise ValueError("image: no image circle: nothing in the frame is lit")
-    k = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    areas = stats[1:, cv2.CC_STAT_AREA]
+    k = 1 + int(np.argmax(areas))
+    if n > 2 and np.sort(areas)[-2] >= 0.5 * areas.max():
+        raise ValueError("image: two image circles (a dual-fisheye frame?): crop each lens's "
+                         "half and run it as a camera of its own")
     disc = labels == k
     corner = max(2, min(h, w) // 20)  # a circle's corners are dark, a full frame's lit
     corners = [disc[:corner, :corner], disc[:corner, -corner:], disc[-corner:, :corner],

@@ -62,7 +62,10 @@ def test_a_bgr_frame_gives_the_grey_frames_circle():
     (np.zeros((480, 640, 2), np.uint8), "image: expected shape"),
     (np.zeros((0, 0), np.uint8), "image: expected a frame of at least 16x16"),
     (cv2.rectangle(np.zeros((480, 640), np.uint8), (100, 50), (500, 400), 200, -1), "circular"),
-], ids=["full frame", "black", "float", "two channels", "empty", "a lit square"])
+    (np.hstack([drawn_frame(480, 480, 240.2, 239.7, 225.0), drawn_frame(480, 480, 239.6, 240.3,
+                                                                         225.0, seed=1)]),
+     "two image circles"),
+], ids=["full frame", "black", "float", "two channels", "empty", "a lit square", "dual fisheye"])
 def test_no_image_circle_is_a_value_error_naming_the_image(image, match):
     with pytest.raises(ValueError, match=match):
         fm.calib.find_image_circle(image)
