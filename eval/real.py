@@ -31,6 +31,7 @@ from skimage.measure import label
 
 from fisheyemotion import calib, draw
 from fisheyemotion.detector import MotionDetector
+from fisheyemotion.frames import to_gray
 from fisheyemotion.inputs import ImageFolder
 from fisheyemotion.params import Params
 from fisheyemotion.poses import PoseMatcher, read_poses
@@ -198,7 +199,7 @@ def run_pairs(data: Path, params: Params | None = None, *, fov_deg: float = 180.
         frames = [f.image for f in ImageFolder(scene)]
         if len(frames) != 2:
             continue
-        prev, curr = (cv2.cvtColor(f, cv2.COLOR_BGR2GRAY) if f.ndim == 3 else f for f in frames)
+        prev, curr = (to_gray(f, "frame") for f in frames)
         circle = calib.find_image_circle(prev)
         cam = calib.nominal_camera(circle, prev.shape[1], prev.shape[0], fov_deg=fov_deg)
         inside = circle.mask(cam.width, cam.height)
@@ -207,7 +208,7 @@ def run_pairs(data: Path, params: Params | None = None, *, fov_deg: float = 180.
         result = det.apply(curr)
         inside = inside > 0
         flagged = (result.mask > 0) & inside
-        still = bool(det._tracker.still)
+        still = result.static_camera  # the poses from the images stood still
         row = {"pair": scene.name, "size": f"{cam.width}x{cam.height}",
                "image circle (cx, cy, radius px)":
                f"{circle.cx:.1f}, {circle.cy:.1f}, {circle.radius:.1f}",

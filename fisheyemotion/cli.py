@@ -257,8 +257,9 @@ def cmd_detect(args: argparse.Namespace) -> int:
     is_bag = hasattr(frames, "trajectory")
     is_sequence = (source / "frames").is_dir()
     circle = None  # the image circle of a nominal camera (--calib circle[:FOV])
-    if args.calib and _circle_fov(args.calib) is not None:
-        camera, circle = _nominal_camera(frames, args.calib)
+    fov = _circle_fov(args.calib) if args.calib else None
+    if fov is not None:
+        camera, circle = _nominal_camera(frames, args.calib, fov)
         extrinsic = None
     elif args.calib:
         rig = calib.load_rig(args.calib)
@@ -353,10 +354,10 @@ def _circle_fov(text: str) -> float | None:
     return fov
 
 
-def _nominal_camera(frames, text: str) -> tuple[calib.CameraModel, calib.ImageCircle]:
-    """``--calib circle[:FOV]``: the nominal equidistant camera of the first frame's image
-    circle (:mod:`fisheyemotion.calib.circle`), said on stderr."""
-    fov = _circle_fov(text)
+def _nominal_camera(frames, text: str, fov: float
+                    ) -> tuple[calib.CameraModel, calib.ImageCircle]:
+    """``--calib circle[:FOV]`` (``text``, ``fov`` degrees): the nominal equidistant camera of
+    the first frame's image circle (:mod:`fisheyemotion.calib.circle`), said on stderr."""
     source = iter(frames)
     try:
         first = next(source)

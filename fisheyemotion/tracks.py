@@ -74,11 +74,13 @@ def track_corners(gray0: NDArray[np.uint8], gray1: NDArray[np.uint8], *,
                                         minDistance=min_distance, mask=m)
     if found is None or len(found) < 8:
         return np.empty((0, 2)), np.empty((0, 2))
-    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, iterations, 0.01)
+    # From a guess only fine levels: a coarse level would lead a patch that the perspective
+    # deforms (the road near the camera) away from it.
+    lk = {**(_LK if predict is None else _LK_GUESSED),
+          "criteria": (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, iterations, 0.01)}
+    if levels is not None:
+        lk["maxLevel"] = int(levels)
     if predict is None:
-        lk = {**_LK, "criteria": criteria}
-        if levels is not None:
-            lk["maxLevel"] = int(levels)
         fwd, ok1, _ = cv2.calcOpticalFlowPyrLK(gray0, gray1, found, None, **lk)
         back, ok2 = found, ok1
         if backward:
@@ -87,19 +89,14 @@ def track_corners(gray0: NDArray[np.uint8], gray1: NDArray[np.uint8], *,
         guess = np.asarray(predict(found[:, 0].astype(np.float64)), dtype=np.float64)
         guess = np.where(np.isfinite(guess), guess, found[:, 0])
         guess = np.ascontiguousarray(guess.reshape(-1, 1, 2), dtype=np.float32)
-        # From a guess only fine levels: a coarse level would lead a patch that the perspective
-        # deforms (the road near the camera) away from it.
-        guessed = {**_LK_GUESSED, "criteria": criteria}
-        if levels is not None:
-            guessed["maxLevel"] = int(levels)
         fwd, ok1, _ = cv2.calcOpticalFlowPyrLK(gray0, gray1, found, guess,
-                                               flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **guessed)
+                                               flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **lk)
         # Back with the predicted displacement reversed (not from the corners themselves).
         back, ok2 = found, ok1
         if backward:
             back_guess = np.ascontiguousarray(fwd - (guess - found), dtype=np.float32)
             back, ok2, _ = cv2.calcOpticalFlowPyrLK(gray1, gray0, fwd, back_guess,
-                                                    flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **guessed)
+                                                    flags=cv2.OPTFLOW_USE_INITIAL_FLOW, **lk)
     good = (ok1[:, 0] == 1) & (ok2[:, 0] == 1) & (
         np.linalg.norm(back - found, axis=-1)[:, 0] < fb_tolerance)
     return found[good, 0].astype(np.float64), fwd[good, 0].astype(np.float64)
