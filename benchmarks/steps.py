@@ -4,6 +4,12 @@
     .venv/bin/python benchmarks/steps.py street     # the tuning street's frames 20 and 23
                                                     # (needs `make demo`'s sequences)
     .venv/bin/python benchmarks/steps.py street data/params/scene_sweep.yaml   # other Params
+    .venv/bin/python benchmarks/steps.py stream     # apply() over the stream benchmark's frames
+
+``stream``: ``MotionDetector.apply`` frame by frame over the ``crossing`` scene's frames 6-17
+(after six that fill the frame gap and the scene model), as ``make bench``'s
+``test_stream_640x480[apply-...]``, ``ROUNDS // 10`` times; the flow method's own call is a row
+(``flow method``) and every other row is the non-flow work of a stream, per frame.
 
 ``MotionDetector.detect_flow`` with ``Params(flow="dis", dis_preset="ultrafast")`` (or a Params
 file's, with that flow), OpenCV on
@@ -35,9 +41,10 @@ ROOT = Path(__file__).resolve().parents[1]
 ROUNDS = 100
 #: Methods of MotionDetector, then functions as the detector module calls them.
 METHODS = ("_measure", "_decide", "_assemble", "_explain_standing", "_textured_cells",
-           "_supported_off_arc", "_grown", "_temporal_filter")
+           "_supported_off_arc", "_grown", "_temporal_filter", "_static_prior", "_one_flow")
 FUNCTIONS = ("constraints", "cell_sigma", "triangulate_range", "grid_upsample", "grow_to_extent",
-             "static_explained", "cell_residual", "grid_transfer", "segment_cells", "grid_average")
+             "static_explained", "cell_residual", "grid_transfer", "segment_cells", "grid_average",
+             "warp_by")
 
 
 def _pair(which: str):
@@ -73,10 +80,13 @@ def main(which: str = "crossing", params: str | None = None) -> None:
         timed(detector_module.MotionDetector, name)
     for name in FUNCTIONS:
         timed(detector_module, name)
-    cam, g0, g1, p0, p1, roi = _pair(which)
     settings = fm.Params() if params is None else fm.Params.load(params)  # a Params file
-    det = fm.MotionDetector(cam, params=settings.replace(flow="dis", dis_preset="ultrafast"),
-                            roi=roi)
+    settings = settings.replace(flow="dis", dis_preset="ultrafast")
+    if which == "stream":
+        _stream(settings, timed, totals)
+        return
+    cam, g0, g1, p0, p1, roi = _pair(which)
+    det = fm.MotionDetector(cam, params=settings, roi=roi)
     flow = det.flow(g0, g1, p0, p1)
     for _ in range(3):
         det.detect_flow(flow, p0, p1, prev=g0, curr=g1, stream=True)
@@ -95,6 +105,38 @@ def main(which: str = "crossing", params: str | None = None) -> None:
           f"{1000 * total / ROUNDS:.2f} ms a pair ({ROUNDS} rounds)")
     for name, seconds in sorted(totals.items(), key=lambda item: -item[1]):
         print(f"  {name:20s} {1000 * seconds / ROUNDS:6.2f}")
+
+
+def _stream(settings, timed, totals) -> None:
+    """The ``stream`` mode (module docstring)."""
+    from fisheyemotion import flow as flow_module
+
+    timed(flow_module.FlowEstimator, "__call__")
+    cam = fm.calib.load(ROOT / "data" / "calib" / "front_kb_640x480.yaml")
+    renderer = synth.Renderer(cam, synth.load_scenario("crossing"))
+    frames = [renderer.render(k) for k in range(18)]
+    grays = [cv2.cvtColor(f.image, cv2.COLOR_BGR2GRAY) for f in frames]
+    importlib.import_module("skimage.segmentation")
+    importlib.import_module("skimage.morphology")
+    total, count = 0.0, 0
+    for round_ in range(1 + ROUNDS // 10):
+        det = fm.MotionDetector(cam, params=settings, roi=renderer.roi())
+        for k in range(6):
+            det.apply(grays[k], frames[k].pose)
+        if round_ == 0:  # a first round out of the figures
+            continue
+        if count == 0:
+            totals.clear()
+        start = time.perf_counter()
+        for k in range(6, 18):
+            det.apply(grays[k], frames[k].pose)
+        total += time.perf_counter() - start
+        count += 12
+    totals["flow method"] = totals.pop("__call__")
+    print(f"stream: apply {1000 * total / count:.2f} ms a frame, of which the flow method "
+          f"{1000 * totals['flow method'] / count:.2f} ({count} frames)")
+    for name, seconds in sorted(totals.items(), key=lambda item: -item[1]):
+        print(f"  {name:20s} {1000 * seconds / count:6.2f}")
 
 
 if __name__ == "__main__":

@@ -2,14 +2,11 @@
 
 from __future__ import annotations
 
-import functools
-
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from . import _warmup
-from .calib.base import pixel_grid
 from .params import Params
 
 _DIS_PRESETS = {"ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST,
@@ -17,19 +14,13 @@ _DIS_PRESETS = {"ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST,
                 "medium": cv2.DISOPTICAL_FLOW_PRESET_MEDIUM}
 
 
-@functools.lru_cache(maxsize=4)
-def _identity_map(width: int, height: int) -> NDArray[np.float32]:
-    grid = pixel_grid(width, height).astype(np.float32)
-    grid.flags.writeable = False
-    return grid
-
-
 def warp_by(image: NDArray, flow: NDArray[np.float32]) -> NDArray:
     """``image`` sampled at ``u + flow(u)`` for every pixel ``u`` (bilinear, edges replicated):
-    the image a flow ``(H, W, 2)`` points into, warped back onto the flow's pixels."""
-    h, w = flow.shape[:2]
-    return cv2.remap(image, _identity_map(w, h) + flow, None, cv2.INTER_LINEAR,
-                     borderMode=cv2.BORDER_REPLICATE)
+    the image a flow ``(H, W, 2)`` points into, warped back onto the flow's pixels.
+    (``cv2.WARP_RELATIVE_MAP``, OpenCV 4.10: the flow is the map, no pixel grid added to it;
+    the same bits as ``cv2.remap`` of the absolute map.)"""
+    return cv2.remap(image, np.ascontiguousarray(flow, dtype=np.float32), None,
+                     cv2.INTER_LINEAR | cv2.WARP_RELATIVE_MAP, borderMode=cv2.BORDER_REPLICATE)
 
 
 class FlowEstimator:

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 import fisheyemotion as fm
 from fisheyemotion import synth
-from fisheyemotion.flow import grid_average, grid_centres, grid_upsample
+from fisheyemotion.flow import grid_average, grid_centres, grid_upsample, warp_by
 from fisheyemotion.prior import EgoFlowPrior
 
 from .cameras import tumvi_kb
@@ -96,6 +96,23 @@ def test_grid_helpers_average_and_upsample():
     assert up.shape == (7, 11) and up[6, 10] == cells[1, 2] and up[0, 0] == cells[0, 0]
     centres = grid_centres(11, 7, 3)
     assert centres[0, 0].tolist() == [1.0, 1.0] and centres[1, 2].tolist() == [7.0, 4.0]
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**16), spread=st.floats(0.0, 40.0))
+def test_warp_by_samples_the_image_where_the_flow_points(seed, spread):
+    """``warp_by`` gives ``image(u + flow(u))``: the same bits as OpenCV's remap of the absolute
+    map ``u + flow``, and a brightness ramp's value there (bilinear, edges replicated)."""
+    rng = np.random.default_rng(seed)
+    h, w = 37, 53
+    image = rng.integers(0, 256, (h, w), dtype=np.uint8)
+    flow = (rng.standard_normal((h, w, 2)) * spread).astype(np.float32)
+    absolute = calib_pixel_grid(w, h).astype(np.float32) + flow
+    expected = cv2.remap(image, absolute, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    np.testing.assert_array_equal(warp_by(image, flow), expected)
+    ramp = np.tile(np.arange(w, dtype=np.float32) * 4.0, (h, 1))  # 4 grey levels a column
+    x = np.clip(absolute[..., 0], 0, w - 1)
+    np.testing.assert_allclose(warp_by(ramp, flow), 4.0 * x, atol=0.2)
 
 
 @settings(max_examples=60, deadline=None)
