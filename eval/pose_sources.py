@@ -175,3 +175,23 @@ def pose_errors(poses: NDArray, truth: NDArray, gap: int) -> pd.DataFrame:
                                                                        @ tru[:3, :3])),
                      "direction_error_deg": direction})
     return pd.DataFrame(rows)
+
+
+def rig_disagreement(poses_a: NDArray, reference_from_a: NDArray, poses_b: NDArray,
+                     reference_from_b: NDArray) -> NDArray[np.float64]:
+    """How far two rigidly mounted cameras' pose estimates disagree on the rig's rotation
+    (degrees, one value per consecutive pair of frames): each camera's motion between frames
+    ``k`` and ``k + 1`` (``poses_*``: ``(N, 4, 4)`` ``world_from_cam`` at the same instants,
+    each in a world frame of its own) expressed in the rig's reference frame
+    (``reference_from_*``, the calibration's extrinsics) is the rig's motion, the same for
+    both; the angle between the two is an error bound that needs no ground truth (about
+    sqrt(2) times each camera's own rotation error, if the errors are independent)."""
+    out = []
+    for k in range(min(len(poses_a), len(poses_b)) - 1):
+        motions = []
+        for poses, extrinsics in ((poses_a, reference_from_a), (poses_b, reference_from_b)):
+            r = extrinsics[:3, :3]
+            step = np.linalg.inv(poses[k]) @ poses[k + 1]  # cam_k from cam_k+1
+            motions.append(r @ step[:3, :3] @ r.T)
+        out.append(math.degrees(rotation_angle(motions[0].T @ motions[1])))
+    return np.asarray(out)

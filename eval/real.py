@@ -1,8 +1,8 @@
 """Detection on the real fisheye clips in ``data/real`` (Project Aria): no ground truth masks, so
 the report shows the annotated frames and measures what can be measured without them.
 
-Each clip folder holds ``device_calibration_full.json`` and camera folders with frames and a
-``poses*.csv``. The clips are head-mounted and indoors: there is no road (``Road.unknown()``:
+Each clip folder holds ``device_calibration_full.json`` and camera folders with frames and,
+where the recording has them, a ``poses*.csv``. The clips are head-mounted and indoors: there is no road (``Road.unknown()``:
 the epipolar and positive-depth constraints only), and they are 30 Hz clips of 3-9 frames, so
 consecutive frames are compared (``frame_gap=1``); the rest are the defaults, scaled to each
 camera's resolution.
@@ -15,7 +15,11 @@ wearer's 2-D box, 0 static), the static background flagged is measured on them: 
 of the valid static pixels outside the wearer's box and more than :data:`TOLERANCE_PX` from a
 moving object. Each clip runs twice:
 with its VIO poses, and with none (estimated from the images, :mod:`fisheyemotion.egomotion`),
-where the estimated rotations are compared with the VIO's.
+where the estimated rotations are compared with the VIO's; a clip without poses (the AEA
+bedroom) runs without only. Where two cameras of one rig saw the same instants, their estimated
+rotations are compared with each other through the factory extrinsics
+(:func:`~fisheyemotion.eval.pose_sources.rig_disagreement`): an error bound without ground
+truth.
 """
 
 from __future__ import annotations
@@ -37,7 +41,7 @@ from fisheyemotion.params import Params
 from fisheyemotion.poses import PoseMatcher, read_poses
 from fisheyemotion.road import Road
 
-from .pose_sources import pose_errors
+from .pose_sources import pose_errors, rig_disagreement
 
 __all__ = ["PAIRS", "RealClip", "TOLERANCE_PX", "find_clips", "run_pairs", "run_real",
            "static_flagged"]
@@ -53,7 +57,7 @@ class RealClip:
     camera: str
     folder: Path
     calibration: Path
-    poses: Path
+    poses: Path | None
 
 
 #: The uncalibrated circular fisheye frame pairs (``data/real/fisheye_mc_pairs/<scene>/``, two
@@ -63,15 +67,21 @@ PAIRS = "fisheye_mc_pairs"
 CHANGED_LEVELS = 20
 
 
+#: Seconds within which two cameras' frames are taken to be of one instant.
+SAME_INSTANT = 1e-3
+
+
 def find_clips(data: Path) -> list[RealClip]:
-    """Camera folders of ``data/real`` with a calibration and a pose file."""
+    """Camera folders of ``data/real`` with a calibration, frames and one pose file or none
+    (``poses`` None)."""
     clips = []
     for cal in sorted((data / "real").glob("*/device_calibration_full.json")):
         rig = calib.load_rig(cal)
         for folder in sorted(p for p in cal.parent.iterdir() if p.is_dir()):
             poses = sorted(folder.glob("poses*.csv"))
-            if folder.name in rig.names and len(poses) == 1:
-                clips.append(RealClip(cal.parent.name, folder.name, folder, cal, poses[0]))
+            if folder.name in rig.names and len(poses) <= 1 and any(folder.glob("*.png")):
+                clips.append(RealClip(cal.parent.name, folder.name, folder, cal,
+                                      poses[0] if poses else None))
     return clips
 
 
@@ -112,22 +122,25 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
     annotated frame of each."""
     params = Params(frame_gap=1) if params is None else params
     rows, shown = [], []
+    estimates: dict[tuple[str, str], tuple[list, list, Path]] = {}  # no poses: stamps, poses
     for clip in find_clips(data):
         cam = calib.load(clip.calibration, clip.camera)
-        matcher = PoseMatcher(read_poses(clip.poses))
+        matcher = None if clip.poses is None else PoseMatcher(read_poses(clip.poses))
         valid = cam.valid_pixel_mask()
         frames = ImageFolder(clip.folder)
         row = {"clip": clip.name, "camera": clip.camera, "model": cam.name,
                "size": f"{cam.width}x{cam.height}", "frames": len(frames)}
         last = None
-        for given in (True, False):  # the clip's VIO poses, then none (estimated)
+        # The clip's VIO poses, then none (estimated); a clip without poses runs without only.
+        for given in (True, False) if matcher is not None else (False,):
             det = MotionDetector(cam, Road.unknown(), params.for_camera(cam))
-            flagged, outside, regions, used, vio, truth = [], [], [], [], [], []
+            flagged, outside, regions, used, vio, truth, stamps = [], [], [], [], [], [], []
             for f in frames:
-                pose = matcher(f.index, f.name, f.stamp)[1]
+                pose = None if matcher is None else matcher(f.index, f.name, f.stamp)[1]
                 result = det.apply(f.image, pose if given else None)
                 used.append(det.last_pose)
                 vio.append(pose)
+                stamps.append(f.stamp)
                 if result is None:
                     continue
                 mask = (result.mask > 0) & valid
@@ -140,8 +153,9 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
                 if gt.is_file():
                     truth.append(static_flagged(mask, cv2.imread(str(gt), cv2.IMREAD_GRAYSCALE),
                                                 valid))
-                if given:
-                    last = (f.image, result, f"{clip.name} / {clip.camera} #{f.index}")
+                if given or matcher is None:
+                    last = (f.image, result, f"{clip.name} / {clip.camera} #{f.index}"
+                            + ("" if given else ", no poses"))
             if given:
                 row.update({"detections": len(flagged),
                             "flagged %": _percent(flagged),
@@ -153,16 +167,50 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
                 if last is not None:
                     shown.append(last)
             else:
-                errors = pose_errors(np.array(used), np.array(vio), 1).rotation_error_deg
-                row.update({"no poses: outside the largest region %": _percent(outside),
+                errors = (pose_errors(np.array(used), np.array(vio), 1).rotation_error_deg
+                          if matcher is not None else None)
+                row.update({"no poses: flagged %": _percent(flagged),
+                            "no poses: outside the largest region %": _percent(outside),
                             "no poses: rotation error vs VIO, median / max (deg)":
+                            "–" if errors is None else
                             f"{errors.median():.2f} / {errors.max():.2f}",
                             "no poses, ground truth: static flagged %":
                             _percent([t[0] for t in truth])})
+                estimates[clip.name, clip.camera] = (stamps, used, clip.calibration)
+                if matcher is None and last is not None:
+                    shown.append(last)
         rows.append(row)
+    table = pd.DataFrame(rows)
+    if len(table):
+        table["no poses: rotation vs the rig's other camera, median / max (deg)"] = [
+            _rig_agreement(estimates, clip, camera)
+            for clip, camera in zip(table["clip"], table["camera"], strict=True)]
     fig = _annotated_figure(shown, "Real fisheye clips (Project Aria): detected regions in "
                             "green, no road (indoors, head-mounted)", (3.4, 3.6))
-    return pd.DataFrame(rows), fig
+    return table, fig
+
+
+def _rig_agreement(estimates: dict, clip: str, camera: str) -> str:
+    """The rotations estimated without poses for ``camera`` of ``clip`` against those of the
+    clip's next camera (in the order run, cyclic) at the instants both saw, through the rig's
+    extrinsics (:func:`~fisheyemotion.eval.pose_sources.rig_disagreement`): ``"median / max"``
+    degrees, or "–" (one camera, or fewer than two shared instants)."""
+    cameras = [name for c, name in estimates if c == clip]
+    if len(cameras) < 2:
+        return "–"
+    other = cameras[(cameras.index(camera) + 1) % len(cameras)]
+    (stamps_a, poses_a, cal), (stamps_b, poses_b, _) = (estimates[clip, camera],
+                                                        estimates[clip, other])
+    shared = [(i, j) for i, a in enumerate(stamps_a) for j, b in enumerate(stamps_b)
+              if a is not None and b is not None and abs(a - b) <= SAME_INSTANT]
+    if len(shared) < 2:
+        return "–"
+    rig = calib.load_rig(cal)
+    degrees = rig_disagreement(np.array([poses_a[i] for i, _ in shared]),
+                               rig.extrinsics[rig.index(camera)],
+                               np.array([poses_b[j] for _, j in shared]),
+                               rig.extrinsics[rig.index(other)])
+    return f"{np.median(degrees):.2f} / {degrees.max():.2f}"
 
 
 def _annotated_figure(shown: list[tuple[np.ndarray, object, str]], title: str,
