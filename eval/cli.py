@@ -7,7 +7,6 @@ import math
 import os
 import shlex
 import sys
-from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -15,7 +14,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from fisheyemotion import calib, synth
-from fisheyemotion.cli import REPO_DATA, CliError, calib_files, calibration_table
+from fisheyemotion.cli import REPO_DATA, CliError, calib_files, calibration_table, integer_type
 from fisheyemotion.outputs import atomic_folder
 from fisheyemotion.params import Params
 
@@ -46,21 +45,8 @@ def _height(text: str) -> float | str:
         raise argparse.ArgumentTypeError(f"expected metres or 'scene', got {text!r}") from None
 
 
-def _integer(minimum: int, what: str) -> Callable[[str], int]:
-    """An argparse type: an integer ``>= minimum`` (``what`` names it in the error)."""
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            value = minimum - 1
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"expected {what} >= {minimum}, got {text!r}")
-        return value
-    return parse
-
-
-_seed = _integer(0, "an integer")
-_workers = _integer(1, "a number of processes")
+_seed = integer_type(0, "an integer")
+_workers = integer_type(1, "a number of processes")
 
 
 def _non_negative(text: str) -> float:

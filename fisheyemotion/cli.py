@@ -11,7 +11,7 @@ import math
 import re
 import sys
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from importlib.metadata import entry_points
 from pathlib import Path
 
@@ -382,6 +382,19 @@ def _nominal_camera(frames, text: str, fov: float
     return camera, circle
 
 
+def integer_type(minimum: int, what: str) -> Callable[[str], int]:
+    """An argparse type: an integer ``>= minimum`` (``what`` names it in the error)."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = minimum - 1
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"expected {what} >= {minimum}, got {text!r}")
+        return value
+    return parse
+
+
 def _detect_params(args: argparse.Namespace, camera: calib.CameraModel) -> Params:
     """``--params FILE`` or ``paper``; the defaults scaled to the camera's resolution."""
     if args.params == "paper":
@@ -390,6 +403,8 @@ def _detect_params(args: argparse.Namespace, camera: calib.CameraModel) -> Param
         params = Params.load(args.params)
     else:
         params = Params().for_camera(camera)
+    if args.frame_gap is not None:
+        params = params.replace(frame_gap=args.frame_gap)
     return params.replace(flow=args.flow) if args.flow else params
 
 
@@ -472,6 +487,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--roi", help="mask image of pixels to use (default: INPUT/roi.png if present)")
     p.add_argument("--flow", choices=("farneback", "dis"),
                    help="the flow method (default: the one in --params, farneback)")
+    p.add_argument("--frame-gap", type=integer_type(1, "a number of frames"), metavar="N",
+                   help="compare each frame with the one N frames before (default: the one in "
+                        "--params, 3: chosen at 15 fps; about 0.2 s of travel suits other rates)")
     p.add_argument("--image-topic", help="bag: the image topic (default: the only one)")
     p.add_argument("--info-topic", help="bag: the CameraInfo topic (default: the image topic's "
                    "camera_info)")

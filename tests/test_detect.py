@@ -213,6 +213,18 @@ def test_detect_cli_on_a_sequence_folder(tmp_path, pair, capsys):
     assert {"timestamp", "azimuth_deg", "elevation_deg", "ground_distance_m"} <= set(regions)
     assert regions.timestamp.notna().all() and regions.ground_distance_m.notna().any()
     assert len(pd.read_json(out / "regions.jsonl", lines=True)) == len(regions)
+    # --frame-gap overrides the params' gap: at 1 the second frame is compared with the first
+    # (a result at frame 1, where the default gap of 2 here has none); 0 is an argument error.
+    out1 = tmp_path / "gap1"
+    assert main(["detect", str(seq), "--out", str(out1), "--quiet", "--road", "z0",
+                 "--frame-gap", "1"]) == 0
+    assert "instead of" not in capsys.readouterr().err
+    assert set(pd.read_csv(out1 / "regions.csv").frame) >= {1, 2}
+    with pytest.raises(SystemExit) as exit_:
+        main(["detect", str(seq), "--out", str(tmp_path / "gap0"), "--frame-gap", "0"])
+    assert exit_.value.code == 2 and "--frame-gap: expected a number of frames >= 1" in (
+        capsys.readouterr().err)
+    assert not (tmp_path / "gap0").exists()
 
 
 def test_detect_cli_on_a_video_with_explicit_files(tmp_path, pair):
