@@ -2,10 +2,10 @@
 the report shows the annotated frames and measures what can be measured without them.
 
 Each clip folder holds ``device_calibration_full.json`` and camera folders with frames and,
-where the recording has them, a ``poses*.csv``. The clips are head-mounted and indoors: there is no road (``Road.unknown()``:
-the epipolar and positive-depth constraints only), and they are 30 Hz clips of 3-9 frames, so
-consecutive frames are compared (``frame_gap=1``); the rest are the defaults, scaled to each
-camera's resolution.
+where the recording has them, a ``poses*.csv``. The clips are head-mounted and indoors: there
+is no road (``Road.unknown()``: the epipolar and positive-depth constraints only), and they are
+10-30 Hz clips of 3-9 frames, so consecutive frames are compared (``frame_gap=1``); the rest
+are the defaults, scaled to each camera's resolution.
 
 The moving object of the office clip is the wearer's arm, one region: the share of valid pixels
 flagged *outside the largest region* bounds the static background flagged. Where a clip has
