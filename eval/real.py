@@ -122,9 +122,11 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
     annotated frame of each."""
     params = Params(frame_gap=1) if params is None else params
     rows, shown = [], []
-    estimates: dict[tuple[str, str], tuple[list, list, Path]] = {}  # no poses: stamps, poses
+    # Without poses, per (clip, camera): the frames' stamps, the poses used, the extrinsic.
+    estimates: dict[tuple[str, str], tuple[list, list, np.ndarray | None]] = {}
     for clip in find_clips(data):
-        cam = calib.load(clip.calibration, clip.camera)
+        rig = calib.load_rig(clip.calibration)
+        cam = rig[clip.camera]
         matcher = None if clip.poses is None else PoseMatcher(read_poses(clip.poses))
         valid = cam.valid_pixel_mask()
         frames = ImageFolder(clip.folder)
@@ -153,7 +155,7 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
                 if gt.is_file():
                     truth.append(static_flagged(mask, cv2.imread(str(gt), cv2.IMREAD_GRAYSCALE),
                                                 valid))
-                if given or matcher is None:
+                if given or matcher is None:  # shown: with its own poses where it has them
                     last = (f.image, result, f"{clip.name} / {clip.camera} #{f.index}"
                             + ("" if given else ", no poses"))
             if given:
@@ -164,8 +166,6 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
                             "ground truth: static flagged %": _percent([t[0] for t in truth]),
                             "ground truth: moving objects' pixels flagged %":
                             _percent([t[1] for t in truth])})
-                if last is not None:
-                    shown.append(last)
             else:
                 errors = (pose_errors(np.array(used), np.array(vio), 1).rotation_error_deg
                           if matcher is not None else None)
@@ -176,9 +176,9 @@ def run_real(data: Path, params: Params | None = None) -> tuple[pd.DataFrame, Fi
                             f"{errors.median():.2f} / {errors.max():.2f}",
                             "no poses, ground truth: static flagged %":
                             _percent([t[0] for t in truth])})
-                estimates[clip.name, clip.camera] = (stamps, used, clip.calibration)
-                if matcher is None and last is not None:
-                    shown.append(last)
+                estimates[clip.name, clip.camera] = (stamps, used, rig.extrinsic(clip.camera))
+        if last is not None:
+            shown.append(last)
         rows.append(row)
     table = pd.DataFrame(rows)
     if len(table):
@@ -194,22 +194,19 @@ def _rig_agreement(estimates: dict, clip: str, camera: str) -> str:
     """The rotations estimated without poses for ``camera`` of ``clip`` against those of the
     clip's next camera (in the order run, cyclic) at the instants both saw, through the rig's
     extrinsics (:func:`~fisheyemotion.eval.pose_sources.rig_disagreement`): ``"median / max"``
-    degrees, or "–" (one camera, or fewer than two shared instants)."""
+    degrees, or "–" (one camera, no extrinsics, or fewer than two shared instants)."""
     cameras = [name for c, name in estimates if c == clip]
     if len(cameras) < 2:
         return "–"
     other = cameras[(cameras.index(camera) + 1) % len(cameras)]
-    (stamps_a, poses_a, cal), (stamps_b, poses_b, _) = (estimates[clip, camera],
-                                                        estimates[clip, other])
+    (stamps_a, poses_a, ext_a), (stamps_b, poses_b, ext_b) = (estimates[clip, camera],
+                                                              estimates[clip, other])
     shared = [(i, j) for i, a in enumerate(stamps_a) for j, b in enumerate(stamps_b)
               if a is not None and b is not None and abs(a - b) <= SAME_INSTANT]
-    if len(shared) < 2:
+    if len(shared) < 2 or ext_a is None or ext_b is None:
         return "–"
-    rig = calib.load_rig(cal)
-    degrees = rig_disagreement(np.array([poses_a[i] for i, _ in shared]),
-                               rig.extrinsics[rig.index(camera)],
-                               np.array([poses_b[j] for _, j in shared]),
-                               rig.extrinsics[rig.index(other)])
+    degrees = rig_disagreement(np.array([poses_a[i] for i, _ in shared]), ext_a,
+                               np.array([poses_b[j] for _, j in shared]), ext_b)
     return f"{np.median(degrees):.2f} / {degrees.max():.2f}"
 
 
