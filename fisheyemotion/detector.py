@@ -801,7 +801,8 @@ class MotionDetector:
         if not moving.any():
             return likelihood, doubted
         stands = standing_regions(moving, share, ranges, self._rays0, pose0, self.camera,
-                                  self.road, p.grid, ratio=p.contact_ratio)
+                                  self.road, p.grid, ratio=p.contact_ratio,
+                                  columns=p.contact_columns)
         if self.scene is not None and len(self.scene) and stands.any():
             # A static point stays where it was: a cell whose range disagrees with what the
             # scene model measured along its ray before, by more than the flow's error explains,

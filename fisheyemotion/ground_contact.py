@@ -19,8 +19,11 @@ the median static range met there, divided by the edge's, is that column's ratio
 over the region's edge cells in a column). A column
 whose ratio is below ``ratio`` stands on the road: its cells' anti-parallel deviation is
 explained. The decision is per column because a pedestrian stepping out beside a parked car is
-one region with it; columns with nothing measured below take the region's decision (the 75th
-percentile of its columns' ratios).
+one region with it; but a column's own walk meets the flow's errors (a boundary the flow smears,
+a cell of another surface), so its ratio is first the median of the region's columns within
+``columns`` on either side (``Params.contact_columns``, 3: measured in docs/evaluation.md).
+Columns with nothing measured below take the region's decision (the 75th percentile of its
+columns' ratios).
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ from .calib.base import CameraModel
 from .road import Road
 from .static_scene import world_points
 
-__all__ = ["WALK_PERCENTILE", "contact_ratios", "standing_regions"]
+__all__ = ["WALK_PERCENTILE", "contact_ratios", "smooth_columns", "standing_regions"]
 
 #: The percentile of the ranges met below an edge cell that its column's ratio is taken from
 #: (50: the median).
@@ -126,10 +129,23 @@ def _row_nanpercentile(a: NDArray[np.float64], q: float) -> NDArray[np.float64]:
     return out
 
 
+def smooth_columns(per_column: NDArray[np.float64], columns: int) -> NDArray[np.float64]:
+    """Each finite ratio of ``per_column`` (n + 1, cols) replaced by the median of its row's
+    finite ratios within ``columns`` columns on either side (NaN stays NaN; 0: unchanged)."""
+    if columns <= 0 or per_column.shape[1] == 0:
+        return per_column
+    width = 2 * columns + 1
+    padded = np.pad(per_column, ((0, 0), (columns, columns)), constant_values=np.nan)
+    windows = np.lib.stride_tricks.sliding_window_view(padded, width, axis=1)
+    n, cols = per_column.shape
+    out = _row_nanpercentile(windows.reshape(n * cols, width), 50.0).reshape(n, cols)
+    return np.where(np.isfinite(per_column), out, np.nan)
+
+
 def standing_regions(moving: NDArray[np.bool_], antiparallel_share: NDArray[np.float64],
                      ranges: NDArray[np.float64], rays: NDArray[np.float64], pose: NDArray,
                      camera: CameraModel, road: Road, grid: int, *, ratio: float,
-                     steps: int = 4) -> NDArray[np.bool_]:
+                     steps: int = 4, columns: int = 0) -> NDArray[np.bool_]:
     """Cells of the regions led by the anti-parallel term that stand on the road.
 
     Parameters
@@ -141,6 +157,9 @@ def standing_regions(moving: NDArray[np.bool_], antiparallel_share: NDArray[np.f
     ratio : float
         Columns whose ground-contact ratio (:func:`contact_ratios`) is below this stand on the
         road.
+    columns : int
+        A column's ratio is first the median of its region's within this many columns on
+        either side (:func:`smooth_columns`; 0: its own).
 
     Returns
     -------
@@ -160,7 +179,8 @@ def standing_regions(moving: NDArray[np.bool_], antiparallel_share: NDArray[np.f
     if not led.any():
         return np.zeros_like(moving)
     candidates = np.where(np.r_[False, led][labels], labels, 0)
-    per_column = contact_ratios(candidates, ranges, rays, pose, camera, road, grid, steps=steps)
+    per_column = smooth_columns(
+        contact_ratios(candidates, ranges, rays, pose, camera, road, grid, steps=steps), columns)
     region = _row_nanpercentile(per_column, 75.0)
     decided = np.where(np.isnan(per_column), region[:, None], per_column)
     with np.errstate(invalid="ignore"):

@@ -158,6 +158,11 @@ class Params:
         static floats above the road and keeps it.
     contact_ratio : float
         Ground-contact ratio below which a region stands on the road.
+    contact_columns : int
+        A column's ground-contact ratio is the median of its region's ratios within this many
+        columns on either side (0: each column's own). One column's walk below the edge meets
+        the flow's errors (a smeared boundary, a cell of another surface); its neighbours on the
+        same object meet others.
     contact_arc : float
         Flow-error sigmas: a standing column's cell whose epipolar deviation is below this
         many of its flow's sigmas (``significance``'s error model) is explained even where its
@@ -283,6 +288,7 @@ class Params:
     pose_refinement: str = "off"
     refine_tolerance: float = 0.1
     contact_ratio: float = 1.05
+    contact_columns: int = 3
     contact_arc: float = 0.03
     range_consistency: float = 0.0
     scene_sweep: float = 0.0
@@ -343,7 +349,8 @@ class Params:
             raise ValueError("temporal_decay: expected a number in [0, 1), got "
                              f"{_short(self.temporal_decay)}")
         for name, low in (("grid", 1), ("min_area", 0), ("frame_gap", 1), ("persistence", 1),
-                          ("scene_memory", 1), ("grow", 0)):
+                          ("scene_memory", 1), ("grow", 0),
+                          ("contact_columns", 0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {_short(v)}")

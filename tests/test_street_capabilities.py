@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 import fisheyemotion as fm
 from fisheyemotion import synth
 from fisheyemotion.flow import grid_gather, grid_transfer
-from fisheyemotion.ground_contact import contact_ratios, standing_regions
+from fisheyemotion.ground_contact import contact_ratios, smooth_columns, standing_regions
 from fisheyemotion.prior import EgoFlowPrior
 from fisheyemotion.significance import cell_sigma, pixel_angle, pose_sigma
 from fisheyemotion.static_scene import StaticScene, triangulate_range
@@ -251,6 +251,38 @@ def test_ground_contact_tells_standing_from_floating(below, stands):
     assert got[labels > 0].all() == stands and not got[labels == 0].any()
 
 
+def test_a_column_whose_walk_meets_a_flow_error_takes_its_neighbours_ratio():
+    # A region 7 columns wide standing on the road, but one column's walk below the edge met a
+    # far reading (a smeared boundary): alone it floats; with its neighbours' median it stands.
+    labels, ranges, rays, pose, g = _column_scene(1.0)
+    labels[20:23, 28:35] = 1
+    ranges[23:30, 28:35] = 10.0
+    ranges[23:30, 31] = 15.0
+    share = np.where(labels > 0, 0.9, 0.0)
+    args = (labels > 0, share, ranges, rays, pose, CAM, fm.Road(), g)
+    alone = standing_regions(*args, ratio=1.05, columns=0)
+    assert alone[labels > 0].mean() < 1 and not alone[20:23, 31].any()
+    assert standing_regions(*args, ratio=1.05, columns=2)[labels > 0].all()
+    # A region floating in most of its columns still floats.
+    ranges[23:30, 28:35] = 15.0
+    ranges[23:30, 31] = 10.0
+    assert not standing_regions(*args, ratio=1.05, columns=2).any()
+
+
+@settings(max_examples=50, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), columns=st.integers(0, 5))
+def test_smooth_columns_is_the_median_of_the_finite_neighbours(seed, columns):
+    rng = np.random.default_rng(seed)
+    ratios = np.where(rng.random((4, 20)) < 0.4, np.nan, rng.uniform(0.5, 2.0, (4, 20)))
+    got = smooth_columns(ratios, columns)
+    for i, c in np.ndindex(ratios.shape):
+        if np.isnan(ratios[i, c]):
+            assert np.isnan(got[i, c])
+        else:
+            window = ratios[i, max(0, c - columns):c + columns + 1]
+            assert got[i, c] == pytest.approx(np.nanmedian(window), rel=1e-12)
+
+
 def test_regions_not_led_by_the_antiparallel_term_are_never_explained():
     labels, ranges, rays, pose, g = _column_scene(0.8)
     share = np.where(labels > 0, 0.3, 0.0)
@@ -429,6 +461,17 @@ def test_the_documented_no_epipolar_significance_file_turns_only_it_off():
     assert fm.Params.paper().epipolar_significance == 0.0
     with pytest.raises(ValueError, match="epipolar_significance: expected a finite number"):
         fm.Params(epipolar_significance=-1.0)
+
+
+def test_the_documented_no_contact_columns_file_turns_only_the_smoothing_off():
+    from pathlib import Path
+
+    off = fm.Params.load(Path(__file__).resolve().parents[1] / "data" / "params"
+                         / "no_contact_columns.yaml")
+    assert off.contact_columns == 0 and fm.Params().contact_columns == 3
+    assert off.replace(contact_columns=3) == fm.Params()
+    with pytest.raises(ValueError, match="contact_columns"):
+        fm.Params(contact_columns=-1)
 
 
 # ---- growth to the object's extent -----------------------------------------------------------
