@@ -789,7 +789,8 @@ class MotionDetector:
         """The likelihood with the anti-parallel deviation removed from regions that stand on
         the road (:mod:`fisheyemotion.ground_contact`) and agree with the scene model or,
         with ``params.contact_arc``, lie on their epipolar arc (``range_error``: each cell's
-        relative range error from its flow's; ``sigma``: its flow's angular error); and the
+        relative range error from its flow's; ``sigma``: its flow's angular error), and, with
+        ``params.contact_epipolar``, their epipolar deviation counted in sigmas only; and the
         cells explained by their arc alone, whose range disagrees with the model's."""
         p = self.params
         doubted = np.zeros(likelihood.shape, bool)
@@ -818,7 +819,19 @@ class MotionDetector:
                     doubted = stands & moved & (res.epipolar < p.contact_arc * sigma)
                     moved &= ~doubted
             stands &= ~moved
-        return np.where(stands, likelihood - weighted, likelihood), doubted
+        explained = np.where(stands, likelihood - weighted, likelihood)
+        if p.contact_epipolar and p.epipolar_significance > 0 and stands.any():
+            # A standing static cell's epipolar deviation counts in sigmas only: within
+            # `epipolar_significance` of them the flow's error explains it, however large the
+            # raw angle (the significance's epipolar part is then below the threshold).
+            with np.errstate(invalid="ignore"):
+                on_arc = stands & (res.epipolar < p.epipolar_significance * sigma)
+            if on_arc.any():
+                epipolar = np.where(np.isnan(res.epipolar), 0.0, res.epipolar)
+                rest = res.likelihood - weighted - p.weights[0] * epipolar / sum(p.weights)
+                rest = self._with_significance(res, sigma, rest)
+                explained = np.where(on_arc, rest, explained)
+        return explained, doubted
 
     def _three_views(self, likelihood, usable, ranges, range_error, cell_flow, prev, curr,
                      t0, t1) -> NDArray[np.float64]:

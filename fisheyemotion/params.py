@@ -169,6 +169,13 @@ class Params:
         range disagrees with the scene model: a static object is seen on its epipolar arc, a
         pedestrian stepping out beside it moves off it. Such a cell is not added to the scene
         model (its range or the model's is wrong). 0 leaves the scene model's veto alone.
+    contact_epipolar : bool
+        In the cells the ground-contact test explains (they stand on the road and agree with
+        the scene model or lie on their arc), the epipolar deviation counts only in flow-error
+        sigmas (``epipolar_significance``), not also as a raw angle: a static object close to
+        the camera at the image's side is measured with a flow error of a degree or more, and
+        its raw angle alone would keep it above the threshold at 1-2 sigmas. Needs
+        ``epipolar_significance > 0``.
     range_consistency : float
         Streams only, 0 (off) by default: flow-error sigmas by which a cell's range may disagree
         with the range the previous pair triangulated for the static point that landed in it
@@ -290,6 +297,7 @@ class Params:
     contact_ratio: float = 1.05
     contact_columns: int = 3
     contact_arc: float = 0.03
+    contact_epipolar: bool = True
     range_consistency: float = 0.0
     scene_sweep: float = 0.0
     scene_sweep_margin: float = 5.0
@@ -356,7 +364,7 @@ class Params:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {_short(v)}")
         for name in ("depth_both_views", "fb_check", "visibility_check", "scene_prior",
                      "scene_bootstrap",
-                     "ground_contact", "photometric_check", "photometric_arc"):
+                     "ground_contact", "contact_epipolar", "photometric_check", "photometric_arc"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}: expected a bool, got {_short(getattr(self, name))}")
         fb = dict(self.farneback) if isinstance(self.farneback, dict) else None

@@ -283,6 +283,33 @@ def test_smooth_columns_is_the_median_of_the_finite_neighbours(seed, columns):
             assert got[i, c] == pytest.approx(np.nanmedian(window), rel=1e-12)
 
 
+@pytest.mark.parametrize("sigmas, contact_epipolar, explained",
+                         [(1.5, True, True), (3.0, True, False), (1.5, False, False)])
+def test_a_standing_cells_epipolar_deviation_counts_in_sigmas_only(sigmas, contact_epipolar,
+                                                                   explained):
+    """A parked car's cell that stands on the road, 1.5 flow-error sigmas off its arc: its raw
+    angle alone (0.015 rad, 1.6 times the threshold at weight 1 / 2.4) is the flow's error, and
+    it is static; 3 sigmas off it is not explained, nor is any without ``contact_epipolar``."""
+    from fisheyemotion.constraints import ConstraintResult
+
+    labels, ranges, rays, pose, g = _column_scene(1.0)
+    det = fm.MotionDetector(CAM, params=fm.Params(contact_epipolar=contact_epipolar))
+    region = labels > 0
+    sigma = np.full(labels.shape, 0.01)
+    zero = np.zeros(labels.shape)
+    epipolar = np.where(region, sigmas * 0.01, 0.0)
+    antiparallel = np.where(region, 0.3, 0.0)  # leads: 0.025 of the weighted mean
+    res = ConstraintResult(epipolar, zero, zero, antiparallel,
+                           (epipolar + 0.2 * antiparallel) / 2.4, np.ones(labels.shape, bool),
+                           False)
+    likelihood = det._with_significance(res, sigma, res.likelihood)
+    assert (likelihood[region] > 0.004).all()
+    out, _ = det._explain_standing(res, likelihood, res.valid, ranges, zero, sigma, pose)
+    assert (out[region] < 0.004).all() == explained
+    assert (out[region] > 0.004).all() == (not explained)
+    np.testing.assert_array_equal(out[~region], likelihood[~region])
+
+
 def test_regions_not_led_by_the_antiparallel_term_are_never_explained():
     labels, ranges, rays, pose, g = _column_scene(0.8)
     share = np.where(labels > 0, 0.3, 0.0)
@@ -472,6 +499,10 @@ def test_the_documented_no_contact_columns_file_turns_only_the_smoothing_off():
     assert off.replace(contact_columns=3) == fm.Params()
     with pytest.raises(ValueError, match="contact_columns"):
         fm.Params(contact_columns=-1)
+    off = fm.Params.load(Path(__file__).resolve().parents[1] / "data" / "params"
+                         / "no_contact_epipolar.yaml")
+    assert off.contact_epipolar is False and fm.Params().contact_epipolar is True
+    assert off.replace(contact_epipolar=True) == fm.Params()
 
 
 # ---- growth to the object's extent -----------------------------------------------------------
