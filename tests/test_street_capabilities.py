@@ -490,7 +490,7 @@ def test_the_documented_no_epipolar_significance_file_turns_only_it_off():
         fm.Params(epipolar_significance=-1.0)
 
 
-def test_the_documented_no_contact_columns_file_turns_only_the_smoothing_off():
+def test_the_documented_contact_files_turn_only_their_setting_off():
     from pathlib import Path
 
     off = fm.Params.load(Path(__file__).resolve().parents[1] / "data" / "params"
