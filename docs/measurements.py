@@ -14,8 +14,9 @@ region statistic could drop the false regions, which ranges the ground-contact t
 on, how far Table 2 moves under negligible, noisy
 and refined poses over several draws, and with the scene model off, how far a warp prior
 from the true depth, with and without occlusions handled, would go, how far off a stream's
-first pair's prior is with and without the scene-model bootstrap, and the share of pairs with a
-false region by the frame they end at.
+first pair's prior is with and without the scene-model bootstrap, the share of pairs with a
+false region by the frame they end at, and the streets' Table 2 with the ground-contact test
+given the true ranges.
 
     .venv/bin/python docs/measurements.py true_depth_prior_bounds   # one of them, by name
 """
@@ -902,6 +903,51 @@ def epipolar_significance_real(ks=(0.0, 2.0, 3.0, 4.0), position_sigmas=(0.0, 0.
     finally:
         fm.MotionDetector._with_significance = with_significance
 
+
+def contact_with_true_ranges(names=("street_kb", "street_ds", "street_heldout_kb",
+                                    "street_heldout_ds")) -> None:
+    """Table 2 per street group with the ground-contact test given the renderer's true range
+    at every cell centre (the static range the test reads, exact, below and inside each region;
+    inf and beyond ``prior_distance`` clipped to it) and everything else the detector's own
+    (``Params()``, Farneback): how far right ranges in the test alone would take the streets."""
+    from fisheyemotion.eval.evaluate import evaluate_sequence
+    from fisheyemotion.eval.report import groups_table
+
+    from fisheyemotion import detector as detector_module
+
+    standing = detector_module.standing_regions
+    p = fm.Params()
+    g, c = p.grid, (p.grid - 1) // 2
+
+    def given_true_ranges(seq: Sequence):
+        renderer = Renderer(seq.camera, load_scenario(seq.path / "scenario.yaml"), supersample=1)
+        frame_of = {pose.tobytes(): k for k, pose in enumerate(seq.poses)}
+
+        def test(moving, share, ranges, rays, pose, *args, **kwargs):
+            k = frame_of.get(np.asarray(pose).tobytes())
+            if k is not None:
+                rows, cols = ranges.shape
+                true = renderer.render(k).range[c:rows * g:g, c:cols * g:g].astype(float)
+                ranges = np.where(np.isfinite(true), np.minimum(true, p.prior_distance),
+                                  p.prior_distance)
+            return standing(moving, share, ranges, rays, pose, *args, **kwargs)
+        return test
+
+    results = []
+    try:
+        for name in names:
+            seq = Sequence(SEQUENCES / name)
+            detector_module.standing_regions = given_true_ranges(seq)
+            results.append(evaluate_sequence(seq.path, p, ablation=False))
+    finally:
+        detector_module.standing_regions = standing
+    table = groups_table(results).set_index("scenes")
+    columns = ["crossing det.", "preceding det.", "approaching det.", "approaching cov.",
+               "FP frames", "static flagged"]
+    print("The ground-contact test given the true ranges (per cent):")
+    print((100 * table[columns]).round(1).to_string())
+
+
 if __name__ == "__main__":
     if not SEQUENCES.is_dir():
         sys.exit(f"{SEQUENCES}: run 'make demo' first")
@@ -925,3 +971,4 @@ if __name__ == "__main__":
     ground_contact_ranges()
     stored_point_errors()
     true_depth_prior_bounds()
+    contact_with_true_ranges()
