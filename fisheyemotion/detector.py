@@ -55,6 +55,7 @@ from .photometric import (
     off_arc_supported,
     static_explained,
     sweep_ranges,
+    testable_cells,
 )
 from .prior import EgoFlowPrior, lands_on, static_scene_targets
 from .range_consistency import RangeMemory
@@ -494,17 +495,22 @@ class MotionDetector:
                                            p.prior_distance)
         keep = ok
         if p.visibility_check:
-            if self._view is None:  # the usable pixels, shrunk by one cell
-                g = p.grid
-                self._view = cv2.erode(self._pixel_valid.astype(np.uint8),
-                                       np.ones((2 * g + 1,) * 2, np.uint8),
-                                       borderType=cv2.BORDER_CONSTANT, borderValue=0) > 0
-            keep = lands_on(targets, ok, self._view, *self.size)
+            keep = lands_on(targets, ok, self._inner_view(), *self.size)
         if parallax and p.min_parallax > 0:
             at_infinity, _ = self.camera.project(self._rays0 @ (t0[:3, :3].T @ t1[:3, :3]))
             with np.errstate(invalid="ignore"):
                 keep &= np.linalg.norm(targets - at_infinity, axis=-1) >= p.min_parallax
         return keep
+
+    def _inner_view(self) -> NDArray[np.bool_]:
+        """The usable pixels shrunk by one cell (H, W): where a cell's whole block is sampled
+        from the image (computed on first use)."""
+        if self._view is None:
+            g = self.params.grid
+            self._view = cv2.erode(self._pixel_valid.astype(np.uint8),
+                                   np.ones((2 * g + 1,) * 2, np.uint8),
+                                   borderType=cv2.BORDER_CONSTANT, borderValue=0) > 0
+        return self._view
 
     def _textured_cells(self, gray: NDArray[np.uint8], *, keep: bool = False
                         ) -> NDArray[np.bool_]:
@@ -626,6 +632,9 @@ class MotionDetector:
                                               p.photometric_margin, cells=above,
                                               tolerance=p.photometric_tolerance,
                                               directions=along, measured=measured)
+            if p.photometric_view and seeds.any():
+                at = self._centres + self._at_cell_centres(static_flow)
+                seeds &= testable_cells(at, self._inner_view(), measured, p.photometric_margin)
             if p.photometric_arc and seeds.any() and not res.static_camera:
                 seeds &= self._supported_off_arc(seeds, flow, cell_flow, m.rays1, t0, t1, gray,
                                                  curr, m.sigma, measured, m.road)

@@ -131,6 +131,14 @@ class Params:
         frames worse by more than ``photometric_margin``) or its deviations on the arc reach
         the threshold (:mod:`fisheyemotion.photometric`): a flow error along an edge counts for
         nothing.
+    photometric_view : bool
+        A cell whose static prediction leaves the view (the usable pixels shrunk by one cell)
+        cannot be compared with the static scene: it starts a region only if its measured
+        flow explains the frames by itself (mean absolute difference below
+        ``photometric_margin``: it is seen where a static point would have left the view, as
+        an overtaking vehicle is). Off: such a cell is compared with the image's replicated
+        border (0.8.9), which no static prediction explains (docs/evaluation.md, *Seeds the
+        images can test*).
     photometric_search : float
         Pixels either way along the epipolar arc from the static correspondence nearest the
         measured one over which ``photometric_arc`` looks for the static correspondence that
@@ -291,6 +299,7 @@ class Params:
     photometric_margin: float = 10.0
     photometric_tolerance: float = 0.25
     photometric_arc: bool = True
+    photometric_view: bool = True
     photometric_search: float = 4.0
     pose_refinement: str = "off"
     refine_tolerance: float = 0.1
@@ -364,7 +373,8 @@ class Params:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {_short(v)}")
         for name in ("depth_both_views", "fb_check", "visibility_check", "scene_prior",
                      "scene_bootstrap",
-                     "ground_contact", "contact_epipolar", "photometric_check", "photometric_arc"):
+                     "ground_contact", "contact_epipolar", "photometric_check", "photometric_arc",
+                     "photometric_view"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}: expected a bool, got {_short(getattr(self, name))}")
         fb = dict(self.farneback) if isinstance(self.farneback, dict) else None

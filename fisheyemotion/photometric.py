@@ -25,6 +25,13 @@ of a pixel -- and on a sharp edge a quarter of a pixel is tens of grey levels. W
 does not explain. A moving object is off its curve by its own motion, which a quarter of a
 pixel along the curve does not undo.
 
+The images can only test a static prediction they show: where a cell's static point leaves
+the view (the previous frame's side of the image as the camera moves forward), its residual
+would compare the cell with the image's replicated border, and every such cell would look
+unexplained. Such a cell is a seed only if its measured flow itself explains the frames (a
+mean absolute difference below the margin): a point seen in the current frame where a static
+point would have left the view, as an overtaking vehicle is (:func:`testable_cells`).
+
 What the images do not support counts for nothing. A cell the static scene does not explain
 is a seed only if the images also support its deviation from the epipolar arc: moved onto the
 arc, the measured flow must explain the frames worse by more than the margin
@@ -57,7 +64,7 @@ from numpy.typing import NDArray
 from .calib.base import CameraModel
 from .calib.transforms import rotate
 from .constraints import nearest_static_ray
-from .prior import static_scene_targets
+from .prior import lands_on, static_scene_targets
 from .road import Road
 
 _STEP = 1e-4  # radians along the epipolar circle, either way, for its image direction
@@ -70,7 +77,8 @@ SEARCH_STEP = 1.0
 SWEEP_RANGES = 1.0 / np.linspace(1.0 / 40.0, 1.0, 24)
 
 __all__ = ["SEARCH_STEP", "SWEEP_RANGES", "arc_candidates", "best_candidate", "cell_residual",
-           "epipolar_directions", "off_arc_supported", "static_explained", "sweep_ranges"]
+           "epipolar_directions", "off_arc_supported", "static_explained", "sweep_ranges",
+           "testable_cells"]
 
 
 def cell_residual(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArray[np.float32],
@@ -124,6 +132,33 @@ def _residuals(prev, curr, flow, grid, cells, shifts) -> NDArray[np.float64]:
                         int(grid), np.ascontiguousarray(shifts, np.float64).reshape(m * n, 2),
                         values)
     return values.reshape(m, n)
+
+
+def testable_cells(predicted: NDArray[np.float64], view: NDArray[np.bool_],
+                   measured: NDArray, margin: float) -> NDArray[np.bool_]:
+    """Cells whose static prediction the images can test: it lands on ``view``, or the
+    measured flow explains the cell by itself (mean absolute difference below ``margin`` grey
+    levels: the cell is seen where a static point would have left the view).
+
+    Parameters
+    ----------
+    predicted : ndarray, shape (rows, cols, 2)
+        Each cell centre's static prediction in the current frame, pixels (NaN: none).
+    view : ndarray of bool, shape (H, W)
+        Pixels around which a whole cell is sampled from the image (the usable pixels shrunk
+        by one cell).
+    measured : ndarray, shape (rows, cols)
+        The measured flow's :func:`cell_residual` (NaN where not computed: not testable).
+    margin : float
+
+    Returns
+    -------
+    ndarray of bool, shape (rows, cols)
+    """
+    height, width = view.shape
+    seen = lands_on(predicted, np.isfinite(predicted).all(axis=-1), view, width, height)
+    with np.errstate(invalid="ignore"):
+        return seen | (measured < margin)
 
 
 def epipolar_directions(camera: CameraModel, pixels: NDArray, pose0: NDArray, pose1: NDArray

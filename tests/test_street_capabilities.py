@@ -490,7 +490,7 @@ def test_the_documented_no_epipolar_significance_file_turns_only_it_off():
         fm.Params(epipolar_significance=-1.0)
 
 
-def test_the_documented_contact_files_turn_only_their_setting_off():
+def test_the_documented_contact_and_view_files_turn_only_their_setting_off():
     from pathlib import Path
 
     off = fm.Params.load(Path(__file__).resolve().parents[1] / "data" / "params"
@@ -503,6 +503,12 @@ def test_the_documented_contact_files_turn_only_their_setting_off():
                          / "no_contact_epipolar.yaml")
     assert off.contact_epipolar is False and fm.Params().contact_epipolar is True
     assert off.replace(contact_epipolar=True) == fm.Params()
+    off = fm.Params.load(Path(__file__).resolve().parents[1] / "data" / "params"
+                         / "no_photometric_view.yaml")
+    assert off.photometric_view is False and fm.Params().photometric_view is True
+    assert off.replace(photometric_view=True) == fm.Params()
+    with pytest.raises(ValueError, match="photometric_view: expected a bool"):
+        fm.Params(photometric_view=1)
 
 
 # ---- growth to the object's extent -----------------------------------------------------------
@@ -700,6 +706,85 @@ def test_photometric_check_removes_a_flow_error_on_static_structure_and_keeps_th
     # The car's region has cells the static scene cannot explain: it stays, whole.
     assert masks[False][car].mean() > 0.5
     np.testing.assert_array_equal(masks[True] & car, masks[False] & car)
+
+
+@pytest.mark.parametrize(("at", "measured", "testable"), [
+    ((100.0, 100.0), 50.0, True),        # lands in view: the images test it, whatever it matched
+    ((100.0, 100.0), np.nan, True),
+    ((700.0, 100.0), 50.0, False),       # left the view: the border is no static prediction
+    ((100.0, -3.0), 50.0, False),
+    ((3.0, 100.0), 50.0, False),         # inside the image but not a whole cell from its edge
+    ((np.nan, np.nan), 50.0, False),     # left the camera's domain
+    ((700.0, 100.0), 4.0, True),         # left the view, but the measured flow matches: seen
+    ((np.nan, np.nan), 9.9, True),       # where a static point would have left
+    ((700.0, 100.0), 10.0, False),       # (below the margin, strictly)
+    ((700.0, 100.0), np.nan, False),
+])
+def test_only_cells_whose_static_prediction_the_images_show_are_testable(at, measured,
+                                                                         testable):
+    from fisheyemotion.photometric import testable_cells
+
+    view = np.zeros((240, 320), bool)
+    view[5:-5, 5:-5] = True              # the usable pixels shrunk by a 5-px cell
+    out = testable_cells(np.array([[at]]), view, np.array([[measured]]), 10.0)
+    assert out.shape == (1, 1) and out[0, 0] == testable
+
+
+def test_a_flow_error_where_the_static_point_left_the_view_is_no_evidence():
+    """The near road leaves the bottom of the view as the camera drives on: a flow that
+    matched something else there (pointing back into the image) compared the static scene
+    with the image's replicated border and became a false region; the images cannot test it,
+    and the crossing car is found as before."""
+    scenario = _crossing_car(frames=4, ego_kmh=30, start=[10, -4], kmh=20)
+    cam = tumvi_kb(640, 480, 200.0)
+    renderer = synth.Renderer(cam, scenario)
+    f0, f3 = renderer.render(0), renderer.render(3)
+    g0, g3 = (cv2.cvtColor(f.image, cv2.COLOR_BGR2GRAY) for f in (f0, f3))
+    true = np.nan_to_num(renderer.flow(3, gap=3)).astype(np.float32)
+    bad = (slice(400, 440), slice(250, 350))
+    v, u = np.mgrid[bad]
+    assert not ((u + true[bad][..., 0] < 639) & (v + true[bad][..., 1] < 479)).any()  # left
+    flow = true.copy()
+    flow[bad] = (0.0, -20.0)             # into the image, onto other gravel
+    now = np.zeros(true.shape[:2], bool)  # where the measured flow carries it
+    now[380:420, 250:350] = True
+    masks = {}
+    for view in (False, True):
+        det = fm.MotionDetector(cam, params=fm.Params(photometric_view=view, extent_reach=0),
+                                roi=renderer.roi())
+        masks[view] = det.detect_flow(flow, f0.pose, f3.pose, prev=g0, curr=g3).mask > 0
+    car = f3.moving > 0
+    assert masks[False][now].mean() > 0.8          # measured 0.97: a false region without it
+    assert not masks[True][now].any()
+    assert masks[True][car].mean() > 0.5
+    np.testing.assert_array_equal(masks[True] & car, masks[False] & car)
+
+
+def test_a_vehicle_seen_where_a_static_point_would_have_left_the_view_stays_a_seed(
+        tmp_path, monkeypatch):
+    """On the highway scene with the exact flow, an overtaking vehicle whose static prediction
+    leaves the view is still found: its measured flow explains the frames. Without that
+    exception (every such cell dropped) one of its frames is lost."""
+    import importlib
+    from pathlib import Path
+
+    from fisheyemotion import photometric
+
+    cam = fm.calib.load(Path(__file__).resolve().parents[1] / "data" / "calib"
+                        / "front_kb_640x480.yaml")
+    highway = synth.load_scenario("highway")
+
+    def overtaking_found(name, params):
+        result = _exact_flow_run(tmp_path / name, cam, highway, params, 16)
+        return int(result.objects[result.objects.category == "overtaking"].detected.sum())
+
+    on = overtaking_found("on", fm.Params())
+    off = overtaking_found("off", fm.Params(photometric_view=False))
+    monkeypatch.setattr(importlib.import_module("fisheyemotion.detector"), "testable_cells",
+                        lambda at, view, measured, margin: photometric.testable_cells(
+                            at, view, measured, -np.inf))
+    strict = overtaking_found("strict", fm.Params())
+    assert on == off > strict                      # measured 8, 8, 7 of 12
 
 
 def test_the_off_arc_test_compares_with_the_best_static_correspondence_not_only_the_nearest():
