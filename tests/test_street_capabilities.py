@@ -678,13 +678,30 @@ def test_the_tolerance_explains_a_prediction_off_along_its_epipolar_curve_only()
     assert not explained["along", 0.25][~cells].any()     # untested cells stay unexplained
 
 
-def test_photometric_check_removes_a_flow_error_on_static_structure_and_keeps_the_car():
-    scenario = _crossing_car(frames=4, ego_kmh=30, start=[10, -4], kmh=20)
+def _crossing_car_pair():
+    """A car crossing the road ahead of a camera at 30 km/h, frames 0 and 3: the camera, its
+    renderer, both frames, their grey images and the exact flow (0 where a point leaves the
+    camera's domain)."""
     cam = tumvi_kb(640, 480, 200.0)
-    renderer = synth.Renderer(cam, scenario)
+    renderer = synth.Renderer(cam, _crossing_car(frames=4, ego_kmh=30, start=[10, -4], kmh=20))
     f0, f3 = renderer.render(0), renderer.render(3)
     g0, g3 = (cv2.cvtColor(f.image, cv2.COLOR_BGR2GRAY) for f in (f0, f3))
-    true = np.nan_to_num(renderer.flow(3, gap=3)).astype(np.float32)
+    return cam, renderer, f0, f3, g0, g3, np.nan_to_num(renderer.flow(3, gap=3)).astype(np.float32)
+
+
+def _masks_without_and_with(setting, flow, cam, renderer, f0, f3, g0, g3):
+    """``{False: mask, True: mask}`` (bool, the current frame's) of one pair's ``flow`` with a
+    boolean ``setting`` of the defaults off and on (no growth to the extent)."""
+    masks = {}
+    for on in (False, True):
+        params = fm.Params(extent_reach=0).replace(**{setting: on})
+        det = fm.MotionDetector(cam, params=params, roi=renderer.roi())
+        masks[on] = det.detect_flow(flow, f0.pose, f3.pose, prev=g0, curr=g3).mask > 0
+    return masks
+
+
+def test_photometric_check_removes_a_flow_error_on_static_structure_and_keeps_the_car():
+    cam, renderer, f0, f3, g0, g3, true = _crossing_car_pair()
     # A flow error on the road ahead (a method that locked onto the wrong texture): 5 px down.
     bad = np.zeros(true.shape[:2], bool)
     bad[210:240, 200:250] = True
@@ -695,11 +712,7 @@ def test_photometric_check_removes_a_flow_error_on_static_structure_and_keeps_th
     v, u = np.nonzero(bad)
     now = np.zeros_like(bad)
     now[np.round(v + true[v, u, 1]).astype(int), np.round(u + true[v, u, 0]).astype(int)] = True
-    masks = {}
-    for check in (False, True):
-        det = fm.MotionDetector(cam, params=fm.Params(photometric_check=check, extent_reach=0),
-                                roi=renderer.roi())
-        masks[check] = det.detect_flow(flow, f0.pose, f3.pose, prev=g0, curr=g3).mask > 0
+    masks = _masks_without_and_with("photometric_check", flow, cam, renderer, f0, f3, g0, g3)
     car = f3.moving > 0
     assert masks[False][now].mean() > 0.4          # measured 0.60: a false alarm without it
     assert masks[True][now].mean() < 0.05          # 0.0: the images say the road is static
@@ -735,12 +748,7 @@ def test_a_flow_error_where_the_static_point_left_the_view_is_no_evidence():
     matched something else there (pointing back into the image) compared the static scene
     with the image's replicated border and became a false region; the images cannot test it,
     and the crossing car is found as before."""
-    scenario = _crossing_car(frames=4, ego_kmh=30, start=[10, -4], kmh=20)
-    cam = tumvi_kb(640, 480, 200.0)
-    renderer = synth.Renderer(cam, scenario)
-    f0, f3 = renderer.render(0), renderer.render(3)
-    g0, g3 = (cv2.cvtColor(f.image, cv2.COLOR_BGR2GRAY) for f in (f0, f3))
-    true = np.nan_to_num(renderer.flow(3, gap=3)).astype(np.float32)
+    cam, renderer, f0, f3, g0, g3, true = _crossing_car_pair()
     bad = (slice(400, 440), slice(250, 350))
     v, u = np.mgrid[bad]
     assert not ((u + true[bad][..., 0] < 639) & (v + true[bad][..., 1] < 479)).any()  # left
@@ -748,11 +756,7 @@ def test_a_flow_error_where_the_static_point_left_the_view_is_no_evidence():
     flow[bad] = (0.0, -20.0)             # into the image, onto other gravel
     now = np.zeros(true.shape[:2], bool)  # where the measured flow carries it
     now[380:420, 250:350] = True
-    masks = {}
-    for view in (False, True):
-        det = fm.MotionDetector(cam, params=fm.Params(photometric_view=view, extent_reach=0),
-                                roi=renderer.roi())
-        masks[view] = det.detect_flow(flow, f0.pose, f3.pose, prev=g0, curr=g3).mask > 0
+    masks = _masks_without_and_with("photometric_view", flow, cam, renderer, f0, f3, g0, g3)
     car = f3.moving > 0
     assert masks[False][now].mean() > 0.8          # measured 0.97: a false region without it
     assert not masks[True][now].any()
