@@ -101,6 +101,7 @@ class _Measured(NamedTuple):
     prior_road: Road | None  # the road of the pair's prior, where the growth needs it
     stream: bool
     check_curr: bool  # ``curr`` is the stream's newest frame: check its texture for later
+    informed: bool  # the static prediction read the scene model's points (the growth's residual)
 
 
 class MotionDetector:
@@ -502,6 +503,11 @@ class MotionDetector:
                 keep &= np.linalg.norm(targets - at_infinity, axis=-1) >= p.min_parallax
         return keep
 
+    def _knows_scene(self, stream: bool) -> bool:
+        """Whether a stream's static-scene model holds points: the static prediction then
+        reads them, not only the road and the far field."""
+        return stream and self.scene is not None and len(self.scene) > 0
+
     def _inner_view(self) -> NDArray[np.bool_]:
         """The usable pixels shrunk by one cell (H, W): where a cell's whole block is sampled
         from the image (computed on first use)."""
@@ -559,6 +565,7 @@ class MotionDetector:
         if p.min_texture > 0 and gray is not None:
             valid &= self._textured_cells(gray)
         static_flow = None  # before the scene model learns from this pair (the prior uses it)
+        informed = self._knows_scene(stream)
         if p.photometric_check and gray is not None and curr is not None:
             static_flow = self._static_flow_for(t0, t1)
         likelihood = res.likelihood
@@ -607,7 +614,7 @@ class MotionDetector:
                          sigma, static_flow, self.road,
                          self._prior_road(t0, t1) if p.grow > 0 else None, stream,
                          p.min_texture > 0 and curr is not None and bool(self._history)
-                         and self._history[-1][0] is curr)
+                         and self._history[-1][0] is curr, informed)
 
     def _decide(self, m: _Measured) -> Detection:
         """A measured pair's result: the photometric check's seeds, the growth and the
@@ -644,7 +651,8 @@ class MotionDetector:
             self._textured_cells(curr, keep=True)
         self._check_road(t0)
         return self._assemble(flow, cell_flow, res, likelihood, valid, stream=m.stream,
-                              seeds=seeds, curr=curr, static_flow=static_flow)
+                              seeds=seeds, curr=curr, static_flow=static_flow,
+                              informed=m.informed)
 
     def _cell_pixel_angle(self) -> NDArray[np.float64]:
         """Radians per pixel at each cell centre (:func:`~fisheyemotion.significance.pixel_angle`),
@@ -905,7 +913,8 @@ class MotionDetector:
     def _assemble(self, flow, cell_flow, res: ConstraintResult, likelihood, valid, *,
                   stream: bool = False, seeds: NDArray[np.bool_] | None = None,
                   curr: NDArray[np.uint8] | None = None,
-                  static_flow: NDArray[np.float32] | None = None) -> Detection:
+                  static_flow: NDArray[np.float32] | None = None,
+                  informed: bool = False) -> Detection:
         p, (w, h) = self.params, self.size
         measured = np.where(valid, likelihood, np.nan)
         # The measurement lives on the previous frame's cells; the result belongs to the current
@@ -948,7 +957,8 @@ class MotionDetector:
             mask, regions = grow_to_extent(labels, regions, p.grid, curr, likelihood,
                                            threshold=p.threshold, reach=p.extent_reach,
                                            static_fraction=p.extent_static,
-                                           residual=residual, inside=self._inside_u8)
+                                           residual=residual, inside=self._inside_u8,
+                                           residual_decides=p.extent_residual and informed)
         if not self._road_warned and self.road.known and self.ground is None \
                 and cell_mask[self._cell_valid].mean() > FLOODED:
             self._road_warned = True

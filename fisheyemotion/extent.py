@@ -15,7 +15,10 @@ mask belongs to says its object ends:
    given the cells' residual flows (measured minus the static scene's), the pixels of cells
    that move less than ``SLOWER`` times the region's mean residual (the background). Only
    pixels with weak or strong deviations that move about as much as the object are left to the
-   flooding.
+   flooding. Where the static prediction knows the structure beside the road (a stream's
+   scene model, ``residual_decides``), a known residual alone decides: a part of the object
+   scored far below the threshold (plain, or near the epipole, where deviations are small)
+   that moves like the object is flooded too.
 3. OpenCV's marker watershed (``cv2.watershed``: Meyer's flooding, ordered by the grey-level
    difference to the neighbours, on the frame smoothed by a Gaussian of 1 px) gives each of
    them to the object or to the background. The object's pixels and the holes they enclose
@@ -59,7 +62,8 @@ def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
                    gray: NDArray[np.uint8], likelihood: NDArray[np.float32], *,
                    threshold: float, reach: float, static_fraction: float,
                    residual: NDArray[np.float64] | None = None,
-                   inside: NDArray[np.uint8] | None = None, min_reach: int = 8
+                   inside: NDArray[np.uint8] | None = None, min_reach: int = 8,
+                   residual_decides: bool = False
                    ) -> tuple[NDArray[np.uint8], list[Region]]:
     """The mask of ``regions`` grown to their objects' extent in ``gray`` (module doc).
 
@@ -89,6 +93,10 @@ def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
         255 where a pixel may be moving (the camera's domain and the region of interest).
     min_reach : int
         Pixels a region may grow by at least.
+    residual_decides : bool
+        Where a cell's ``residual`` is known it alone marks the background (slower than
+        ``SLOWER`` times the region's), not ``static_fraction``: for residuals measured against
+        a static prediction that knows the structure beside the road (a stream's scene model).
 
     Returns
     -------
@@ -128,6 +136,8 @@ def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
             if np.isfinite(mean).all():
                 with np.errstate(invalid="ignore"):
                     slower = speed[cells] < SLOWER * np.linalg.norm(mean)
+                if residual_decides:  # where known, the residual alone marks the background
+                    background &= ~(_on_pixels(np.isfinite(speed[cells]), grid, crop) > 0)
                 background |= _on_pixels(slower, grid, crop) > 0
         markers[background & (own == 0)] = 2
         markers[0, :] = markers[-1, :] = 2

@@ -159,6 +159,15 @@ class Params:
         *Extent*).
     extent_static : float
         Pixels scored below this share of ``threshold`` are background to the growth.
+    extent_residual : bool
+        In streams, where the static-scene model informs the static prediction, a cell's
+        residual flow (measured minus the static scene's) decides whether the growth may take
+        it, instead of ``extent_static``: a part of the object scored far below the threshold
+        (plain, or near the epipole, where deviations are small) that moves like the object is
+        left to the flooding; a cell that moves less than the object is background. Where the
+        residual is unknown, and in a single pair (whose prediction is the road and the far
+        field, wrong on structure beside the road), the likelihood decides (0.8.10). Measured
+        in docs/evaluation.md, *Extent*.
     ground_contact : bool
         Regions led by the anti-parallel term that stand on the road (the static range just
         below their lower edge is about their own) are static structure: their anti-parallel
@@ -295,6 +304,7 @@ class Params:
     grow: int = 0
     extent_reach: float = 0.5
     extent_static: float = 0.1
+    extent_residual: bool = True
     photometric_check: bool = True
     photometric_margin: float = 10.0
     photometric_tolerance: float = 0.25
@@ -374,7 +384,7 @@ class Params:
         for name in ("depth_both_views", "fb_check", "visibility_check", "scene_prior",
                      "scene_bootstrap",
                      "ground_contact", "contact_epipolar", "photometric_check", "photometric_arc",
-                     "photometric_view"):
+                     "photometric_view", "extent_residual"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}: expected a bool, got {_short(getattr(self, name))}")
         fb = dict(self.farneback) if isinstance(self.farneback, dict) else None

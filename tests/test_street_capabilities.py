@@ -354,11 +354,15 @@ def test_a_pedestrian_stepping_out_between_parked_cars_keeps_the_scene_models_ve
     import importlib
 
     cam = tumvi_kb(640, 480, 200.0)
-    veto_only = _exact_flow_run(tmp_path / "a", cam, STEP_OUT, fm.Params(contact_arc=0.0), 16)
-    with_arc = _exact_flow_run(tmp_path / "b", cam, STEP_OUT, fm.Params(), 16)
+    # What the constraints flag, not grown: a false region beside the pedestrian grown onto it
+    # would count as finding it.
+    flagged = fm.Params(extent_reach=0.0)
+    veto_only = _exact_flow_run(tmp_path / "a", cam, STEP_OUT, flagged.replace(contact_arc=0.0),
+                                16)
+    with_arc = _exact_flow_run(tmp_path / "b", cam, STEP_OUT, flagged, 16)
     monkeypatch.setattr(importlib.import_module("fisheyemotion.detector"), "SCENE_AGREEMENT",
                         np.inf)  # no range ever disagrees: no veto
-    no_veto = _exact_flow_run(tmp_path / "c", cam, STEP_OUT, fm.Params(contact_arc=0.0), 16)
+    no_veto = _exact_flow_run(tmp_path / "c", cam, STEP_OUT, flagged.replace(contact_arc=0.0), 16)
     found = {name: int(r.objects.detected.sum())
              for name, r in (("veto", veto_only), ("arc", with_arc), ("none", no_veto))}
     assert veto_only.frames.fp_frame.sum() > 0 and with_arc.frames.fp_frame.sum() == 0
