@@ -503,11 +503,6 @@ class MotionDetector:
                 keep &= np.linalg.norm(targets - at_infinity, axis=-1) >= p.min_parallax
         return keep
 
-    def _knows_scene(self, stream: bool) -> bool:
-        """Whether a stream's static-scene model holds points: the static prediction then
-        reads them, not only the road and the far field."""
-        return stream and self.scene is not None and len(self.scene) > 0
-
     def _inner_view(self) -> NDArray[np.bool_]:
         """The usable pixels shrunk by one cell (H, W): where a cell's whole block is sampled
         from the image (computed on first use)."""
@@ -565,7 +560,9 @@ class MotionDetector:
         if p.min_texture > 0 and gray is not None:
             valid &= self._textured_cells(gray)
         static_flow = None  # before the scene model learns from this pair (the prior uses it)
-        informed = self._knows_scene(stream)
+        # The pair's static prediction read the stream's scene model, not only the road and the
+        # far field (before the model learns from this pair).
+        informed = stream and self.scene is not None and len(self.scene) > 0
         if p.photometric_check and gray is not None and curr is not None:
             static_flow = self._static_flow_for(t0, t1)
         likelihood = res.likelihood
