@@ -637,8 +637,10 @@ class MotionDetector:
                                               tolerance=p.photometric_tolerance,
                                               directions=along, measured=measured)
             if p.photometric_view and seeds.any():
-                at = self._centres + self._at_cell_centres(static_flow)
-                seeds &= testable_cells(at, self._inner_view(), measured, p.photometric_margin)
+                r, c = np.nonzero(seeds)
+                at = self._centres[r, c] + self._at_cell_centres(static_flow)[r, c]
+                seeds[r, c] = testable_cells(at, self._inner_view(), measured[r, c],
+                                             p.photometric_margin)
             if p.photometric_arc and seeds.any() and not res.static_camera:
                 seeds &= self._supported_off_arc(seeds, flow, cell_flow, m.rays1, t0, t1, gray,
                                                  curr, m.sigma, measured, m.road)

@@ -142,18 +142,18 @@ def testable_cells(predicted: NDArray[np.float64], view: NDArray[np.bool_],
 
     Parameters
     ----------
-    predicted : ndarray, shape (rows, cols, 2)
+    predicted : ndarray, shape (..., 2)
         Each cell centre's static prediction in the current frame, pixels (NaN: none).
     view : ndarray of bool, shape (H, W)
         Pixels around which a whole cell is sampled from the image (the usable pixels shrunk
         by one cell).
-    measured : ndarray, shape (rows, cols)
-        The measured flow's :func:`cell_residual` (NaN where not computed: not testable).
+    measured : ndarray, shape (...)
+        The measured flow's :func:`cell_residual` at those cells (NaN: not testable).
     margin : float
 
     Returns
     -------
-    ndarray of bool, shape (rows, cols)
+    ndarray of bool, shape (...)
     """
     height, width = view.shape
     seen = lands_on(predicted, np.isfinite(predicted).all(axis=-1), view, width, height)
