@@ -626,10 +626,11 @@ class MotionDetector:
             # are tested) is not explained by the static scene.
             with np.errstate(invalid="ignore"):
                 above = valid & (likelihood > p.threshold)
+            def predicted(r, c):  # the static scene's prediction of cells (r, c), pixels
+                return self._centres[r, c] + self._at_cell_centres(static_flow)[r, c]
+
             def along(cells):  # the epipolar curves at the cells' predicted points
-                r, c = np.nonzero(cells)
-                at = self._centres[r, c] + self._at_cell_centres(static_flow)[r, c]
-                return epipolar_directions(self.camera, at, t0, t1)
+                return epipolar_directions(self.camera, predicted(*np.nonzero(cells)), t0, t1)
 
             measured = cell_residual(gray, curr, flow, p.grid, above)  # shared by both tests
             seeds = above & ~static_explained(gray, curr, flow, static_flow, p.grid,
@@ -638,9 +639,8 @@ class MotionDetector:
                                               directions=along, measured=measured)
             if p.photometric_view and seeds.any():
                 r, c = np.nonzero(seeds)
-                at = self._centres[r, c] + self._at_cell_centres(static_flow)[r, c]
-                seeds[r, c] = testable_cells(at, self._inner_view(), measured[r, c],
-                                             p.photometric_margin)
+                seeds[r, c] = testable_cells(predicted(r, c), self._inner_view(),
+                                             measured[r, c], p.photometric_margin)
             if p.photometric_arc and seeds.any() and not res.static_camera:
                 seeds &= self._supported_off_arc(seeds, flow, cell_flow, m.rays1, t0, t1, gray,
                                                  curr, m.sigma, measured, m.road)
