@@ -88,9 +88,10 @@ class Detection:
     regions : list of Region
     static_camera : bool
     cell_mask : ndarray of uint8, shape (H, W)
-        255 on the regions' cells before their growth to the objects' extent
-        (``Params.extent_reach``; :mod:`fisheyemotion.extent`): what the constraints flagged.
-        The same as ``mask`` without the growth. Pose estimation and refinement exclude it.
+        255 on the regions' cells that the constraints flagged: without the cells the closing
+        over small gaps filled in (``Params.region_gap``) and before the growth to the objects'
+        extent (``Params.extent_reach``; :mod:`fisheyemotion.extent`). The same as ``mask``
+        without both. Pose estimation and refinement exclude it.
     """
 
     likelihood: NDArray[np.float32]

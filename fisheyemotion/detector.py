@@ -943,10 +943,18 @@ class MotionDetector:
             cell_likelihood, threshold=p.threshold, grid=p.grid, min_area=p.min_area, age=age,
             persistence=p.persistence, seed_threshold=p.seed_threshold,
             extend_threshold=p.extend_threshold,
-            seeds=None if seeds is None else grid_gather(seeds, source, False), with_labels=True)
-        cells_now = cv2.bitwise_and(grid_upsample(cell_mask.astype(np.uint8) * 255, p.grid, w, h),
-                                    self._inside_u8)
-        mask = cells_now
+            seeds=None if seeds is None else grid_gather(seeds, source, False),
+            gap=p.region_gap, with_labels=True)
+        def on_pixels(cells: NDArray[np.bool_]) -> NDArray[np.uint8]:
+            return cv2.bitwise_and(grid_upsample(cells.astype(np.uint8) * 255, p.grid, w, h),
+                                   self._inside_u8)
+
+        mask = on_pixels(cell_mask)
+        # What the constraints flagged: the regions' cells without those a closing over a gap
+        # added (``params.region_gap``), which the pose step need not leave out.
+        with np.errstate(invalid="ignore"):
+            flagged = cell_mask & (cell_likelihood > p.threshold)
+        cells_now = mask if p.region_gap <= 0 else on_pixels(flagged)
         if p.extent_reach > 0 and curr is not None and regions:
             # The mask of the frame the user passed last, grown on that frame's image.
             residual = None

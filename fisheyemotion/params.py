@@ -277,6 +277,13 @@ class Params:
         real kitchen clip's static background.
     min_area : int
         Regions smaller than this many pixels are dropped.
+    region_gap : int
+        Cells. Every region kept (seeded, at least ``min_area``) takes the pieces of cells
+        above the threshold at most ``2 region_gap`` cells from it along a row or column and is
+        closed over those gaps (:func:`fisheyemotion.segment.segment_cells`' ``gap``): one
+        object is one region, not a detection and specks around it, and its unflagged middle is
+        covered. 0: off (the paper). Measured in docs/evaluation.md (*Regions closed over small
+        gaps*).
     saturation : float
         Likelihood mapped to full colour when drawing (paper: 0.02).
     """
@@ -336,6 +343,7 @@ class Params:
     seed_threshold: float = 0.0
     extend_threshold: float = 0.0
     min_area: int = 100
+    region_gap: int = 1
     saturation: float = 0.02
 
     def __post_init__(self) -> None:
@@ -376,7 +384,7 @@ class Params:
             raise ValueError("temporal_decay: expected a number in [0, 1), got "
                              f"{_short(self.temporal_decay)}")
         for name, low in (("grid", 1), ("min_area", 0), ("frame_gap", 1), ("persistence", 1),
-                          ("scene_memory", 1), ("grow", 0),
+                          ("scene_memory", 1), ("grow", 0), ("region_gap", 0),
                           ("contact_columns", 0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
@@ -405,7 +413,7 @@ class Params:
         return cls(**{"flow_prior": "none", "scene_prior": False, "scene_bootstrap": False,
                       "ground_contact": False,
                       "significance": 0.0, "epipolar_significance": 0.0, "grow": 0,
-                      "extent_reach": 0.0,
+                      "extent_reach": 0.0, "region_gap": 0,
                       "photometric_check": False,
                       "fb_check": False,
                       "frame_gap": 1, "min_texture": 0.0,

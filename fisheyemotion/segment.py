@@ -1,6 +1,7 @@
 """Threshold + connected components on the grid of cell likelihoods (OpenCV's labelling, 8-connected;
 region properties for all labels at once with numpy; scikit-image's hysteresis threshold when a
-seed threshold is set; the extension of kept regions to weaker connected cells)."""
+seed threshold is set; the extension of kept regions to weaker connected cells; the closing of
+kept regions over small gaps, which joins the pieces of one object)."""
 
 from __future__ import annotations
 
@@ -35,7 +36,8 @@ class Region(NamedTuple):
 def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, grid: int,
                   min_area: int, age: NDArray | None = None, persistence: int = 1,
                   seed_threshold: float = 0.0, extend_threshold: float = 0.0,
-                  seeds: NDArray[np.bool_] | None = None, with_labels: bool = False
+                  seeds: NDArray[np.bool_] | None = None, gap: int = 0,
+                  with_labels: bool = False
                   ) -> tuple[NDArray[np.bool_], list[Region]] | tuple[
                       NDArray[np.bool_], list[Region], NDArray[np.int32]]:
     """Cells above ``threshold`` grouped 8-connected; regions under ``min_area`` pixels dropped,
@@ -57,6 +59,15 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
     seeds : ndarray of bool, shape (rows, cols), optional
         Regions none of whose cells is a seed are dropped (the photometric check's cells the
         static scene does not explain, :mod:`fisheyemotion.photometric`).
+    gap : int
+        Cells. Each region kept by the rules above (seeded, at least ``min_area``, persistent)
+        is closed together with the pieces of cells above ``threshold`` near it (a
+        morphological closing by a plus ``2 gap + 1`` cells across): where a piece faces the
+        region, or a piece joined to it, across at most ``2 gap`` cells of a row or column, the
+        cells between are filled, flagged or not, and the piece joins the region (the parts of
+        an object without a seed of their own, or under ``min_area`` by themselves). One
+        region per object instead of specks beside it, its plain middle covered. Pieces the
+        closing does not join are dropped as before. 0: off.
 
     Returns
     -------
@@ -78,7 +89,11 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
         kept, _, _ = _kept_regions(moving, values, grid, min_area, None, 1)
         moving = _extended(kept, values > extend_threshold)
     if seeds is not None:
-        moving = _extended(seeds & moving, moving)
+        moving = _extended(seeds & moving, moving) if gap <= 0 else _joined(
+            _extended(seeds & moving, moving), moving, values, grid, min_area, age, persistence,
+            gap)
+    elif gap > 0:
+        moving = _joined(moving, moving, values, grid, min_area, age, persistence, gap)
     mask, regions, labels = _kept_regions(moving, values, grid, min_area, age, persistence)
     return (mask, regions, labels) if with_labels else (mask, regions)
 
@@ -91,6 +106,24 @@ def _extended(seeds: NDArray[np.bool_], weak: NDArray[np.bool_]) -> NDArray[np.b
     holds[labels[seeds]] = True
     holds[0] = False
     return holds[labels]
+
+
+def _joined(candidates: NDArray[np.bool_], moving: NDArray[np.bool_], values: NDArray[np.float64],
+            grid: int, min_area: int, age: NDArray | None, persistence: int, gap: int
+            ) -> NDArray[np.bool_]:
+    """The regions of ``candidates`` that are kept, closed with the pieces of ``moving``
+    near them (``segment_cells``' ``gap``): the components of the closing that hold a kept
+    cell."""
+    kept, _, _ = _kept_regions(candidates, values, grid, min_area, age, persistence)
+    if not kept.any():
+        return kept
+    # A plus: the pieces of an object lie above, below or beside each other; a square also
+    # filled the background at a region's corners (docs/evaluation.md).
+    plus = cv2.getStructuringElement(cv2.MORPH_CROSS, (2 * gap + 1, 2 * gap + 1))
+    near = cv2.dilate(moving.astype(np.uint8), plus) > 0  # pieces that may join
+    taken = _extended(kept, near) & moving
+    closed = cv2.morphologyEx(taken.astype(np.uint8), cv2.MORPH_CLOSE, plus) > 0
+    return _extended(kept & closed, closed)
 
 
 def _kept_regions(moving: NDArray[np.bool_], values: NDArray[np.float64], grid: int,

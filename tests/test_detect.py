@@ -7,6 +7,8 @@ import os
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import fisheyemotion as fm
 from fisheyemotion import draw, synth
@@ -316,6 +318,81 @@ def test_seeds_keep_whole_regions_that_hold_one_and_drop_the_rest():
     plain, _ = segment_cells(cells, threshold=0.004, grid=5, min_area=0)
     every, _ = segment_cells(cells, threshold=0.004, grid=5, min_area=0, seeds=cells > 0)
     np.testing.assert_array_equal(every, plain)
+
+
+def test_a_kept_region_takes_the_pieces_within_its_gap_and_closes_over_them():
+    """``gap``: a seeded region is closed with the unseeded pieces that face it (or a piece
+    joined to it) across at most 2 gap cells of a row or column, the cells between them filled;
+    pieces farther off, or only diagonal, are dropped as before; gap 0 is the old
+    segmentation."""
+    from fisheyemotion.segment import segment_cells
+
+    cells = np.zeros((14, 20))
+    cells[4:8, 2:5] = 0.006            # the seeded region
+    cells[4:8, 7:9] = 0.006            # a piece 2 cells to its right (no seed)
+    cells[4:8, 11:12] = 0.006          # a piece 2 cells to the right of that one
+    cells[4:8, 15:17] = 0.006          # 3 cells farther: not taken
+    cells[10:12, 7:9] = 0.006          # 2 cells below and 2 across from a corner: diagonal only
+    seeds = np.zeros(cells.shape, bool)
+    seeds[5, 3] = True
+    mask, regions = segment_cells(cells, threshold=0.004, grid=5, min_area=0, seeds=seeds,
+                                  gap=1)
+    assert len(regions) == 1
+    pieces = cells > 0
+    assert mask[:9, :12][pieces[:9, :12]].all()        # the region and both pieces, whole
+    assert mask[5:7, 2:12].all()                       # the cells between them where they face
+    assert not mask[4, 5:7].any() and not mask[7, 9:11].any()   # not the corners (a plus)
+    assert not mask[:, 13:].any() and not mask[9:].any()
+    assert regions[0].bbox == (2 * 5, 4 * 5, 10 * 5, 4 * 5)
+    old, _ = segment_cells(cells, threshold=0.004, grid=5, min_area=0, seeds=seeds)
+    zero, _ = segment_cells(cells, threshold=0.004, grid=5, min_area=0, seeds=seeds, gap=0)
+    np.testing.assert_array_equal(zero, old)
+    assert old.sum() == 12 and old[4:8, 2:5].all()     # only the seeded region
+    # Without seeds the regions of min_area are what take pieces (here the seeded region's
+    # size: 12 cells = 300 px; the pieces are smaller and, alone, dropped).
+    unseeded, _ = segment_cells(cells, threshold=0.004, grid=5, min_area=300, gap=1)
+    np.testing.assert_array_equal(unseeded, mask)
+
+
+def test_a_speck_under_min_area_does_not_take_pieces_through_the_gap():
+    from fisheyemotion.segment import segment_cells
+
+    cells = np.zeros((8, 12))
+    cells[2:5, 2:4] = 0.006            # a seeded speck of 6 cells (150 px) ...
+    cells[2:5, 6:8] = 0.006            # ... 2 cells from another of 6 without a seed
+    seeds = np.zeros(cells.shape, bool)
+    seeds[2, 2] = True
+    mask, _ = segment_cells(cells, threshold=0.004, grid=5, min_area=175, seeds=seeds, gap=1)
+    assert not mask.any()              # joined they would pass min_area: the speck did not
+    kept, _ = segment_cells(cells, threshold=0.004, grid=5, min_area=150, seeds=seeds, gap=1)
+    assert kept[2:5, 2:4].all() and kept[2:5, 6:8].all() and kept[3, 4:6].all()
+    assert kept.sum() == 14            # and the middle row between them
+
+
+@given(st.integers(0, 2**31 - 1), st.integers(1, 2))
+@settings(max_examples=25, deadline=None)
+def test_the_gap_only_adds_cells_around_the_regions_kept_without_it(seed, gap):
+    """Every region kept without the gap is kept with it, whole; every cell the closing adds
+    is within gap cells (along rows and columns) of a flagged cell it kept; no region appears
+    that holds none of the regions kept without it."""
+    from fisheyemotion.segment import segment_cells
+
+    rng = np.random.default_rng(seed)
+    cells = np.where(rng.random((16, 20)) < 0.3, 0.006, 0.0)
+    seeds = rng.random(cells.shape) < 0.05
+    old, _ = segment_cells(cells, threshold=0.004, grid=5, min_area=50, seeds=seeds)
+    new, regions = segment_cells(cells, threshold=0.004, grid=5, min_area=50, seeds=seeds,
+                                 gap=gap)
+    assert new[old].all()
+    if not old.any():
+        assert not new.any() and regions == []
+        return
+    moving = cells > 0.004
+    plus = cv2.getStructuringElement(cv2.MORPH_CROSS, (2 * gap + 1,) * 2)
+    near = cv2.dilate((new & moving).astype(np.uint8), plus) > 0
+    assert not (new & ~moving & ~near).any()
+    n, labels = cv2.connectedComponents(new.astype(np.uint8), connectivity=8)
+    assert all(old[labels == i].any() for i in range(1, n))
 
 
 def test_a_speck_under_min_area_does_not_grow_into_a_detection():

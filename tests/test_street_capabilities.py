@@ -564,13 +564,40 @@ def test_extension_covers_more_of_a_detected_object_and_keeps_what_was_found():
     renderer = synth.Renderer(cam, scenario)
     f0, f3 = renderer.render(0), renderer.render(3)
     flow = np.nan_to_num(renderer.flow(3, gap=3))
-    masks = {t: fm.MotionDetector(cam, params=fm.Params(extend_threshold=t), roi=renderer.roi())
+    masks = {t: fm.MotionDetector(cam, params=fm.Params(extend_threshold=t, region_gap=0),
+                                  roi=renderer.roi())
              .detect_flow(flow, f0.pose, f3.pose).mask > 0 for t in (0.0, 0.002)}
     obj = f3.moving > 0
     plain, extended = (masks[t][obj].mean() for t in (0.0, 0.002))
     assert masks[0.002][masks[0.0]].all()        # nothing found is lost
     assert extended > plain + 0.08               # measured 0.61 -> 0.75
     assert (masks[0.002] & ~obj).sum() <= (masks[0.0] & ~obj).sum() + 0.02 * obj.sum()
+
+
+# ---- regions closed over small gaps -------------------------------------------------------
+
+def test_regions_closed_over_their_gaps_cover_more_of_the_pedestrian_than_they_add_around_it():
+    """``Params.region_gap``: on a crossing pair whose pedestrian is found in pieces, the
+    closing covers more of the pedestrian (measured 46 -> 59 %) than it adds of the static
+    scene, joins pieces instead of adding regions, and the cell mask stays what the
+    constraints flagged (the pose step leaves that out)."""
+    cam = tumvi_kb(640, 480, 200.0)
+    renderer = synth.Renderer(cam, synth.load_scenario("crossing"))
+    f0, f3 = renderer.render(12), renderer.render(15)
+    out = {g: fm.MotionDetector(cam, params=fm.Params(region_gap=g), roi=renderer.roi())
+           .detect(f0.image, f3.image, f0.pose, f3.pose) for g in (0, 1)}
+    obj = f3.moving > 0
+    plain, closed = (out[g].mask > 0 for g in (0, 1))
+    assert closed[obj].mean() > plain[obj].mean() + 0.08
+    added_object = (closed & obj).sum() - (plain & obj).sum()
+    added_static = (closed & ~obj).sum() - (plain & ~obj).sum()
+    assert 0 <= added_static < added_object
+    assert len(out[1].regions) <= len(out[0].regions)
+    np.testing.assert_array_equal(out[0].likelihood, out[1].likelihood)
+    cells = out[1].cell_mask > 0
+    assert cells.any() and closed[cells].all()
+    assert (out[1].likelihood[cells] >= np.float32(fm.Params().threshold)).all()
+    assert (closed & ~cells & (out[1].likelihood < fm.Params().threshold)).any()
 
 
 # ---- the photometric check of the static hypothesis ---------------------------------------
