@@ -945,6 +945,7 @@ class MotionDetector:
             extend_threshold=p.extend_threshold,
             seeds=None if seeds is None else grid_gather(seeds, source, False),
             gap=p.region_gap, with_labels=True)
+
         def on_pixels(cells: NDArray[np.bool_]) -> NDArray[np.uint8]:
             return cv2.bitwise_and(grid_upsample(cells.astype(np.uint8) * 255, p.grid, w, h),
                                    self._inside_u8)

@@ -88,13 +88,10 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
         # min_area must not grow past it through weak cells.
         kept, _, _ = _kept_regions(moving, values, grid, min_area, None, 1)
         moving = _extended(kept, values > extend_threshold)
-    if seeds is not None:
-        moving = _extended(seeds & moving, moving) if gap <= 0 else _joined(
-            _extended(seeds & moving, moving), moving, values, grid, min_area, age, persistence,
-            gap)
-    elif gap > 0:
-        moving = _joined(moving, moving, values, grid, min_area, age, persistence, gap)
-    mask, regions, labels = _kept_regions(moving, values, grid, min_area, age, persistence)
+    candidates = moving if seeds is None else _extended(seeds & moving, moving)
+    if gap > 0:  # the pieces are all the cells above the threshold, seeded or not
+        candidates = _joined(candidates, moving, values, grid, min_area, age, persistence, gap)
+    mask, regions, labels = _kept_regions(candidates, values, grid, min_area, age, persistence)
     return (mask, regions, labels) if with_labels else (mask, regions)
 
 
