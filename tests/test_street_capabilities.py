@@ -494,6 +494,19 @@ def test_the_documented_no_epipolar_significance_file_turns_only_it_off():
         fm.Params(epipolar_significance=-1.0)
 
 
+def test_the_documented_region_gap_file_turns_only_the_closing_off():
+    from pathlib import Path
+
+    off = fm.Params.load(Path(__file__).resolve().parents[1] / "data" / "params"
+                         / "no_region_gap.yaml")
+    assert off.region_gap == 0 and fm.Params().region_gap == 1
+    assert off.replace(region_gap=1) == fm.Params()
+    assert fm.Params.paper().region_gap == 0
+    for bad in (-1, 1.5, True):
+        with pytest.raises(ValueError, match="region_gap: expected an integer >= 0"):
+            fm.Params(region_gap=bad)
+
+
 def test_the_documented_contact_and_view_files_turn_only_their_setting_off():
     from pathlib import Path
 
