@@ -950,12 +950,12 @@ class MotionDetector:
             return cv2.bitwise_and(grid_upsample(cells.astype(np.uint8) * 255, p.grid, w, h),
                                    self._inside_u8)
 
-        mask = on_pixels(cell_mask)
-        # What the constraints flagged: the regions' cells without those a closing over a gap
-        # added (``params.region_gap``), which the pose step need not leave out.
-        with np.errstate(invalid="ignore"):
-            flagged = cell_mask & (cell_likelihood > p.threshold)
-        cells_now = mask if p.region_gap <= 0 else on_pixels(flagged)
+        mask = cells_now = on_pixels(cell_mask)
+        if p.region_gap > 0:
+            # What the constraints flagged: not the cells the closing over small gaps filled in,
+            # which the pose step need not leave out.
+            with np.errstate(invalid="ignore"):
+                cells_now = on_pixels(cell_mask & (cell_likelihood > p.threshold))
         if p.extent_reach > 0 and curr is not None and regions:
             # The mask of the frame the user passed last, grown on that frame's image.
             residual = None
