@@ -15,8 +15,9 @@ on, how far Table 2 moves under negligible, noisy
 and refined poses over several draws, and with the scene model off, how far a warp prior
 from the true depth, with and without occlusions handled, would go, how far off a stream's
 first pair's prior is with and without the scene-model bootstrap, the share of pairs with a
-false region by the frame they end at, and the streets' Table 2 with the ground-contact test
-given the true ranges.
+false region by the frame they end at, the streets' Table 2 with the ground-contact test
+given the true ranges, where a moving object's coverage is lost step by step, and the crossing
+pedestrians' cells flagged by their elevation from the plane through the epipole.
 
     .venv/bin/python docs/measurements.py true_depth_prior_bounds   # one of them, by name
 """
@@ -948,6 +949,146 @@ def contact_with_true_ranges(names=("street_kb", "street_ds", "street_heldout_kb
     print((100 * table[columns]).round(1).to_string())
 
 
+
+def _traced_pairs(path: Path, params: fm.Params, *, exact_flow: bool = False):
+    """``evaluate_sequence``'s stream of a sequence, each pair with what the detector computed
+    on the way (a list of dicts, one a pair): ``frame`` (the current one), ``pose0``,
+    ``valid`` and ``flagged`` (the pair's cells on the previous frame: scored, and above the
+    threshold), ``carried`` and ``filtered`` (cells above the threshold on the current frame's
+    cells before and after the temporal filter), ``result`` (the Detection) and ``res``
+    (the constraints)."""
+    from fisheyemotion.eval.evaluate import evaluate_sequence
+
+    from fisheyemotion import detector as detector_module
+
+    cls = detector_module.MotionDetector
+    originals = {name: getattr(cls, name)
+                 for name in ("_measure", "_temporal_filter", "_assemble", "detect_flow")}
+    seq = Sequence(path)
+    frame_of = {pose.tobytes(): k for k, pose in enumerate(seq.poses)}
+    pairs: list[dict] = []
+    now: dict = {}
+
+    def measure(self, flow, t0, t1, *args, **kwargs):
+        now.update(frame=frame_of.get(np.asarray(t1).tobytes()), pose0=t0)
+        return originals["_measure"](self, flow, t0, t1, *args, **kwargs)
+
+    def temporal_filter(self, cell_likelihood, carrier, source):
+        out = originals["_temporal_filter"](self, cell_likelihood, carrier, source)
+        now.update(carried=np.nan_to_num(cell_likelihood) > self.params.threshold,
+                   filtered=np.nan_to_num(out[0]) > self.params.threshold)
+        return out
+
+    def assemble(self, flow, cell_flow, res, likelihood, valid, **kwargs):
+        now.update(valid=valid, res=res,
+                   flagged=valid & (np.nan_to_num(likelihood) > self.params.threshold))
+        return originals["_assemble"](self, flow, cell_flow, res, likelihood, valid, **kwargs)
+
+    def detect_flow(self, *args, **kwargs):
+        result = originals["detect_flow"](self, *args, **kwargs)
+        if kwargs.get("stream") and now.get("frame") is not None:
+            pairs.append({**now, "result": result})
+        now.clear()
+        return result
+
+    try:
+        cls._measure, cls._temporal_filter = measure, temporal_filter
+        cls._assemble, cls.detect_flow = assemble, detect_flow
+        evaluate_sequence(path, params, ablation=False, exact_flow=exact_flow)
+    finally:
+        for name, function in originals.items():
+            setattr(cls, name, function)
+    return seq, pairs
+
+
+def coverage_by_step(names=("crossing", "street_kb", "street_heldout_kb", "preceding"),
+                     exact_flow: bool = False, params: fm.Params | None = None) -> None:
+    """Where a moving object's coverage is lost, step by step (``Params()``, Farneback or the
+    exact flow, streamed as the evaluation does): the share of each object (the object-frames
+    with a cell above the threshold) covered by its cells above the threshold on the previous
+    frame (*measured*), the same carried to the current frame (*carried*), after the temporal
+    filter (*filtered*), in the regions kept, without the closing's cells (*kept*:
+    ``Detection.cell_mask``), and in the final mask (*mask*: closed and grown); *scored* is the
+    share of its cells on the previous frame that were scored at all. ``params``: other than
+    ``Params()`` (``Params(region_gap=0)``: 0.8.11's regions)."""
+    import pandas as pd
+
+    from fisheyemotion.flow import grid_upsample
+
+    p = fm.Params() if params is None else params
+    g = p.grid
+    rows = []
+    for name in names:
+        seq, pairs = _traced_pairs(SEQUENCES / name, p, exact_flow=exact_flow)
+        objects = seq.objects
+        category = dict(zip(objects.id.astype(int), objects.category, strict=True))
+        moving = set(objects[objects.moving.astype(bool)].id.astype(int))
+        h, w = seq.camera.height, seq.camera.width
+
+        def up(cells, w=w, h=h):
+            return grid_upsample(cells.astype(np.uint8), g, w, h) > 0
+
+        for pair in pairs:
+            k = pair["frame"]
+            ids0, ids1 = seq.ids(k - p.frame_gap), seq.ids(k)
+            masks = {"measured": up(pair["flagged"]), "carried": up(pair["carried"]),
+                     "filtered": up(pair["filtered"]),
+                     "kept": pair["result"].cell_mask > 0, "mask": pair["result"].mask > 0}
+            for i in moving:
+                before, after = ids0 == i, ids1 == i
+                if not before.any() or not after.any() or not (masks["measured"] & before).any():
+                    continue
+                row = {"sequence": name, "category": category[i],
+                       "scored": (up(pair["valid"]) & before).sum() / before.sum()}
+                for step, mask in masks.items():
+                    on = before if step == "measured" else after
+                    row[step] = (mask & on).sum() / on.sum()
+                rows.append(row)
+    table = pd.DataFrame(rows).groupby(["sequence", "category"]).mean(numeric_only=True)
+    print(f"Share of each moving object covered, step by step ({'exact' if exact_flow else 'Farneback'}"
+          " flow, per cent):")
+    print((100 * table).round(1).to_string())
+
+
+def crossing_cells_by_elevation(names=("crossing", "street_kb", "street_heldout_kb")) -> None:
+    """The crossing pedestrians' scored cells given the exact flow, by their elevation from the
+    horizontal plane through the epipole (the plane of the baseline and the road's normal):
+    how many, the share above the threshold and the median epipolar deviation. Lateral motion
+    seen near that plane runs along the epipolar arcs."""
+    import pandas as pd
+
+    p = fm.Params()
+    g, c = p.grid, (p.grid - 1) // 2
+    rows = []
+    for name in names:
+        seq, pairs = _traced_pairs(SEQUENCES / name, p, exact_flow=True)
+        objects = seq.objects
+        crossing = set(objects[objects.category == "crossing"].id.astype(int))
+        cam = seq.camera
+        rcount, ccount = pairs[0]["valid"].shape
+        u, v = np.meshgrid(np.arange(ccount) * g + c, np.arange(rcount) * g + c)
+        rays, _ = cam.unproject(np.stack([u, v], -1).astype(float))
+        up_world = fm.Road().up
+        for pair in pairs:
+            k, pose0 = pair["frame"], pair["pose0"]
+            baseline = seq.poses[k][:3, 3] - pose0[:3, 3]
+            side = np.cross(baseline, up_world)
+            normal = np.cross(side, baseline)  # in the baseline's vertical plane, upwards
+            normal /= np.linalg.norm(normal)
+            elevation = np.degrees(np.arcsin(np.clip(rays @ pose0[:3, :3].T @ normal, -1, 1)))
+            ids = seq.ids(k - p.frame_gap)[c:rcount * g:g, c:ccount * g:g]
+            cells = np.isin(ids, list(crossing)) & pair["valid"]
+            rows.append(pd.DataFrame({"elevation": np.abs(elevation[cells]),
+                                      "flagged": pair["flagged"][cells],
+                                      "epipolar": pair["res"].epipolar[cells]}))
+    df = pd.concat(rows)
+    df["band"] = pd.cut(df.elevation, [0, 1, 2, 4, 8, 16, 90])
+    table = df.groupby("band", observed=True).agg(
+        cells=("flagged", "size"), flagged=("flagged", "mean"), epipolar=("epipolar", "median"))
+    print("Crossing pedestrians' scored cells given the exact flow, by elevation (deg) from the "
+          "horizontal plane through the epipole:")
+    print(table.round(4).to_string())
+
 if __name__ == "__main__":
     if not SEQUENCES.is_dir():
         sys.exit(f"{SEQUENCES}: run 'make demo' first")
@@ -972,3 +1113,5 @@ if __name__ == "__main__":
     stored_point_errors()
     true_depth_prior_bounds()
     contact_with_true_ranges()
+    coverage_by_step()
+    crossing_cells_by_elevation()
