@@ -217,16 +217,10 @@ def test_extent_parameters_are_checked_and_off_in_the_papers_pipeline():
             fm.Params(**{name: -1.0})
 
 
-def test_the_documented_params_files_turn_the_extent_or_its_residual_off_or_add_the_extension():
+def test_the_documented_coverage_file_adds_the_extension():
+    """(The files that turn the extent or its residual off: tests/test_params_files.py.)"""
     from pathlib import Path
 
-    folder = Path(__file__).resolve().parents[1] / "data" / "params"
-    off, more = (fm.Params.load(folder / f) for f in ("no_extent.yaml", "coverage.yaml"))
-    assert off.replace(extent_reach=fm.Params().extent_reach) == fm.Params()
-    assert off.extent_reach == 0.0
+    more = fm.Params.load(Path(__file__).resolve().parents[1] / "data" / "params"
+                          / "coverage.yaml")
     assert more == fm.Params(extend_threshold=0.002)
-    single = fm.Params.load(folder / "no_extent_residual.yaml")
-    assert single.extent_residual is False and fm.Params().extent_residual is True
-    assert single.replace(extent_residual=True) == fm.Params()
-    with pytest.raises(ValueError, match="extent_residual: expected a bool"):
-        fm.Params(extent_residual="yes")

@@ -482,54 +482,6 @@ def test_epipolar_significance_finds_a_slow_distant_pedestrian():
     assert not (masks[2.0] & ~obj).any()
 
 
-def test_the_documented_no_epipolar_significance_file_turns_only_it_off():
-    from pathlib import Path
-
-    off = fm.Params.load(Path(__file__).resolve().parents[1] / "data" / "params"
-                         / "no_epipolar_significance.yaml")
-    assert off.epipolar_significance == 0.0 and fm.Params().epipolar_significance == 2.0
-    assert off.replace(epipolar_significance=2.0) == fm.Params()
-    assert fm.Params.paper().epipolar_significance == 0.0
-    with pytest.raises(ValueError, match="epipolar_significance: expected a finite number"):
-        fm.Params(epipolar_significance=-1.0)
-
-
-def test_the_documented_region_gap_file_turns_only_the_closing_off():
-    from pathlib import Path
-
-    off = fm.Params.load(Path(__file__).resolve().parents[1] / "data" / "params"
-                         / "no_region_gap.yaml")
-    assert off.region_gap == 0 and fm.Params().region_gap == 1
-    assert off.replace(region_gap=1) == fm.Params()
-    assert fm.Params.paper().region_gap == 0
-    for bad in (-1, 1.5, True):
-        with pytest.raises(ValueError, match="region_gap: expected an integer >= 0"):
-            fm.Params(region_gap=bad)
-
-
-def test_the_documented_contact_and_view_files_turn_only_their_setting_off():
-    from pathlib import Path
-
-    off = fm.Params.load(Path(__file__).resolve().parents[1] / "data" / "params"
-                         / "no_contact_columns.yaml")
-    assert off.contact_columns == 0 and fm.Params().contact_columns == 3
-    assert off.replace(contact_columns=3) == fm.Params()
-    with pytest.raises(ValueError, match="contact_columns"):
-        fm.Params(contact_columns=-1)
-    off = fm.Params.load(Path(__file__).resolve().parents[1] / "data" / "params"
-                         / "no_contact_epipolar.yaml")
-    assert off.contact_epipolar is False and fm.Params().contact_epipolar is True
-    assert off.replace(contact_epipolar=True) == fm.Params()
-    off = fm.Params.load(Path(__file__).resolve().parents[1] / "data" / "params"
-                         / "no_photometric_view.yaml")
-    assert off.photometric_view is False and fm.Params().photometric_view is True
-    assert off.replace(photometric_view=True) == fm.Params()
-    with pytest.raises(ValueError, match="photometric_view: expected a bool"):
-        fm.Params(photometric_view=1)
-
-
-# ---- growth to the object's extent -----------------------------------------------------------
-
 def test_regions_grow_over_their_objects_residual_and_stop_at_its_boundary():
     from fisheyemotion.grow import grow_regions
 
@@ -1028,16 +980,6 @@ def test_a_streams_first_pair_is_warped_by_the_structure_its_frames_between_show
     assert errors[True] < 0.1 * errors[False]
     assert flagged[False] > 0.2 and flagged[True] < 0.05
     assert fm.Params().scene_bootstrap and not fm.Params.paper().scene_bootstrap
-
-
-def test_the_documented_no_bootstrap_file_turns_only_it_off_and_bad_values_are_refused():
-    from pathlib import Path
-
-    off = fm.Params.load(Path(__file__).resolve().parents[1] / "data" / "params"
-                         / "no_bootstrap.yaml")
-    assert not off.scene_bootstrap and off.replace(scene_bootstrap=True) == fm.Params()
-    with pytest.raises(ValueError, match="scene_bootstrap: expected a bool"):
-        fm.Params(scene_bootstrap="yes")
 
 
 def test_the_bootstrap_runs_once_per_stream_and_again_after_reset(monkeypatch):

@@ -1,0 +1,48 @@
+"""The documented ``data/params/no_*.yaml`` files: each turns one default off and nothing else,
+and the setting it names refuses bad values with its name (docs/evaluation.md quotes each file)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+import fisheyemotion as fm
+
+FOLDER = Path(__file__).resolve().parents[1] / "data" / "params"
+
+#: file: (field, its value in the file, the default, Params.paper()'s or None where the paper
+#: pipeline's is not asserted, bad values, the error's start)
+CASES = {
+    "no_bootstrap.yaml": ("scene_bootstrap", False, True, False, ("yes",),
+                          "scene_bootstrap: expected a bool"),
+    "no_contact_columns.yaml": ("contact_columns", 0, 3, None, (-1,), "contact_columns"),
+    "no_contact_epipolar.yaml": ("contact_epipolar", False, True, None, (), ""),
+    "no_epipolar_significance.yaml": ("epipolar_significance", 0.0, 2.0, 0.0, (-1.0,),
+                                      "epipolar_significance: expected a finite number"),
+    "no_extent.yaml": ("extent_reach", 0.0, 0.5, 0.0, (), ""),
+    "no_extent_residual.yaml": ("extent_residual", False, True, None, ("yes",),
+                                "extent_residual: expected a bool"),
+    "no_photometric_view.yaml": ("photometric_view", False, True, None, (1,),
+                                 "photometric_view: expected a bool"),
+    "no_region_gap.yaml": ("region_gap", 0, 1, 0, (-1, 1.5, True),
+                           "region_gap: expected an integer >= 0"),
+}
+
+
+def test_every_documented_off_file_is_tested():
+    assert {p.name for p in FOLDER.glob("no_*.yaml")} == set(CASES)
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_a_documented_file_turns_only_its_setting_off(name):
+    field, off_value, default, paper, bad, message = CASES[name]
+    off = fm.Params.load(FOLDER / name)
+    assert getattr(off, field) == off_value and getattr(fm.Params(), field) == default
+    assert type(getattr(off, field)) is type(default)
+    assert off.replace(**{field: default}) == fm.Params()
+    if paper is not None:
+        assert getattr(fm.Params.paper(), field) == paper
+    for value in bad:
+        with pytest.raises(ValueError, match=message):
+            fm.Params(**{field: value})
