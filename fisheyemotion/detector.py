@@ -939,12 +939,17 @@ class MotionDetector:
         if stream and (p.temporal_decay > 0 or p.persistence > 1):
             cell_likelihood, age = self._temporal_filter(cell_likelihood, carrier, source)
         likelihood = to_image(np.where(np.isnan(cell_likelihood), 0.0, cell_likelihood))
+        led = None
+        if p.antiparallel_seeds > 1 and seeds is not None:
+            with np.errstate(invalid="ignore", divide="ignore"):  # the anti-parallel share
+                led = now(p.weights[3] * np.nan_to_num(res.antiparallel) / sum(p.weights)
+                          / measured)
         cell_mask, regions, labels = segment_cells(
             cell_likelihood, threshold=p.threshold, grid=p.grid, min_area=p.min_area, age=age,
             persistence=p.persistence, seed_threshold=p.seed_threshold,
             extend_threshold=p.extend_threshold,
             seeds=None if seeds is None else grid_gather(seeds, source, False),
-            gap=p.region_gap, with_labels=True)
+            gap=p.region_gap, led=led, led_seeds=p.antiparallel_seeds, with_labels=True)
 
         def on_pixels(cells: NDArray[np.bool_]) -> NDArray[np.uint8]:
             return cv2.bitwise_and(grid_upsample(cells.astype(np.uint8) * 255, p.grid, w, h),

@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 
 from .calib.base import CameraModel
 from .road import Road
+from .segment import LED
 from .static_scene import world_points
 
 __all__ = ["WALK_PERCENTILE", "contact_ratios", "smooth_columns", "standing_regions"]
@@ -175,7 +176,7 @@ def standing_regions(moving: NDArray[np.bool_], antiparallel_share: NDArray[np.f
     cells = np.bincount(flat, minlength=n + 1)[1:]
     share = np.bincount(flat, weights=np.nan_to_num(antiparallel_share).ravel(),
                         minlength=n + 1)[1:] / np.maximum(cells, 1)
-    led = share >= 0.5
+    led = share >= LED
     if not led.any():
         return np.zeros_like(moving)
     candidates = np.where(np.r_[False, led][labels], labels, 0)

@@ -284,6 +284,13 @@ class Params:
         object is one region, not a detection and specks around it, and its unflagged middle is
         covered. 0: off (the paper). Measured in docs/evaluation.md (*Regions closed over small
         gaps*).
+    antiparallel_seeds : int
+        Seed cells (:mod:`fisheyemotion.photometric`) a region led by the anti-parallel term
+        needs (its weighted deviation half the region's likelihood or more: where the false
+        regions on parked cars and walls are); other regions need one. 1 (default): as any
+        other. ``data/params/fewer_false_alarms.yaml`` sets 2: fewer false-positive frames
+        at the cost of pedestrians stepping out with a single seed (docs/evaluation.md,
+        *Fewer false alarms*).
     saturation : float
         Likelihood mapped to full colour when drawing (paper: 0.02).
     """
@@ -344,6 +351,7 @@ class Params:
     extend_threshold: float = 0.0
     min_area: int = 100
     region_gap: int = 1
+    antiparallel_seeds: int = 1
     saturation: float = 0.02
 
     def __post_init__(self) -> None:
@@ -385,6 +393,7 @@ class Params:
                              f"{_short(self.temporal_decay)}")
         for name, low in (("grid", 1), ("min_area", 0), ("frame_gap", 1), ("persistence", 1),
                           ("scene_memory", 1), ("grow", 0), ("region_gap", 0),
+                          ("antiparallel_seeds", 1),
                           ("contact_columns", 0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < low:

@@ -37,6 +37,7 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
                   min_area: int, age: NDArray | None = None, persistence: int = 1,
                   seed_threshold: float = 0.0, extend_threshold: float = 0.0,
                   seeds: NDArray[np.bool_] | None = None, gap: int = 0,
+                  led: NDArray[np.float64] | None = None, led_seeds: int = 1,
                   with_labels: bool = False
                   ) -> tuple[NDArray[np.bool_], list[Region]] | tuple[
                       NDArray[np.bool_], list[Region], NDArray[np.int32]]:
@@ -68,6 +69,12 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
         an object without a seed of their own, or under ``min_area`` by themselves). One
         region per object instead of specks beside it, its plain middle covered. Pieces the
         closing does not join are dropped as before. 0: off.
+    led : ndarray, shape (rows, cols), optional
+        With ``seeds``: each cell's share of its likelihood from one term (the anti-parallel
+        deviation's, weighted; NaN counts 0). A region whose mean share is at least
+        :data:`LED` is led by that term and needs ``led_seeds`` seed cells, not one.
+    led_seeds : int
+        Seeds a region led by that term needs (1: as any other).
 
     Returns
     -------
@@ -91,8 +98,31 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
     candidates = moving if seeds is None else _extended(seeds & moving, moving)
     if gap > 0:  # the pieces are all the cells above the threshold, seeded or not
         candidates = _joined(candidates, moving, values, grid, min_area, age, persistence, gap)
+    if seeds is not None and led is not None and led_seeds > 1 and candidates.any():
+        candidates = _seeded_enough(candidates, seeds, led, led_seeds)
     mask, regions, labels = _kept_regions(candidates, values, grid, min_area, age, persistence)
     return (mask, regions, labels) if with_labels else (mask, regions)
+
+
+#: A term leads a region when its share of the region's likelihood is at least this, on
+#: average over the region's cells (:mod:`fisheyemotion.ground_contact` too).
+LED = 0.5
+
+
+def _seeded_enough(candidates: NDArray[np.bool_], seeds: NDArray[np.bool_],
+                   led: NDArray[np.float64], led_seeds: int) -> NDArray[np.bool_]:
+    """``candidates`` without the regions (8-connected) that the term of ``led`` leads and
+    that hold fewer than ``led_seeds`` seed cells."""
+    n, labels = cv2.connectedComponents(candidates.astype(np.uint8), connectivity=8,
+                                        ltype=cv2.CV_32S)
+    flat = labels.ravel()
+    cells = np.bincount(flat, minlength=n)
+    share = np.bincount(flat, weights=np.nan_to_num(led).ravel(), minlength=n) / np.maximum(
+        cells, 1)
+    held = np.bincount(labels[seeds & candidates], minlength=n)
+    keep = held >= np.where(share >= LED, led_seeds, 1)
+    keep[0] = False
+    return keep[labels]
 
 
 def _extended(seeds: NDArray[np.bool_], weak: NDArray[np.bool_]) -> NDArray[np.bool_]:

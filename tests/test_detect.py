@@ -354,6 +354,34 @@ def test_a_kept_region_takes_the_pieces_within_its_gap_and_closes_over_them():
     np.testing.assert_array_equal(unseeded, mask)
 
 
+def test_a_region_led_by_the_anti_parallel_term_needs_led_seeds():
+    """``led``/``led_seeds``: a region whose mean share (NaN as 0) reaches LED needs
+    ``led_seeds`` seed cells; one below it needs one; 1 is the old rule."""
+    from fisheyemotion.segment import LED, segment_cells
+
+    cells = np.zeros((10, 16))
+    cells[2:6, 1:5] = 0.006            # region A
+    cells[2:6, 10:14] = 0.006          # region B
+    share = np.zeros(cells.shape)
+    share[2:6, 1:5] = LED + 0.05       # A led by the term (on average) ...
+    share[2, 1] = np.nan               # ... a NaN counts 0: mean still above LED
+    share[2:6, 10:14] = LED - 0.05     # B not
+    seeds = np.zeros(cells.shape, bool)
+    seeds[3, 2] = seeds[3, 11] = True
+    kw = dict(threshold=0.004, grid=5, min_area=0, seeds=seeds, led=share)
+    old, _ = segment_cells(cells, threshold=0.004, grid=5, min_area=0, seeds=seeds)
+    one, _ = segment_cells(cells, **kw, led_seeds=1)
+    np.testing.assert_array_equal(one, old)
+    two, regions = segment_cells(cells, **kw, led_seeds=2)
+    assert not two[:, :8].any() and two[2:6, 10:14].all() and len(regions) == 1
+    seeds[4, 3] = True                 # a second seed in A
+    both, _ = segment_cells(cells, **kw, led_seeds=2)
+    np.testing.assert_array_equal(both, old)
+    share[2:6, 1:5] = LED - 0.05       # A no longer led: one seed is enough
+    seeds[4, 3] = False
+    np.testing.assert_array_equal(segment_cells(cells, **kw, led_seeds=2)[0], old)
+
+
 def test_a_speck_under_min_area_does_not_take_pieces_through_the_gap():
     from fisheyemotion.segment import segment_cells
 

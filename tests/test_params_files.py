@@ -46,3 +46,11 @@ def test_a_documented_file_turns_only_its_setting_off(name):
     for value in bad:
         with pytest.raises(ValueError, match=message):
             fm.Params(**{field: value})
+
+
+def test_the_fewer_false_alarms_file_asks_two_seeds_of_anti_parallel_led_regions():
+    assert fm.Params.load(FOLDER / "fewer_false_alarms.yaml") == fm.Params(antiparallel_seeds=2)
+    assert fm.Params().antiparallel_seeds == 1
+    for bad in (0, 1.5, True):
+        with pytest.raises(ValueError, match="antiparallel_seeds: expected an integer >= 1"):
+            fm.Params(antiparallel_seeds=bad)

@@ -565,6 +565,33 @@ def test_regions_closed_over_their_gaps_cover_more_of_the_pedestrian_than_they_a
     assert (closed & ~cells & (out[1].likelihood < fm.Params().threshold)).any()
 
 
+def test_two_seeds_for_anti_parallel_led_regions_keep_a_crossing_pedestrian():
+    """``Params.antiparallel_seeds``: the crossing pedestrian, led by the epipolar term, is
+    found as with one seed; the anti-parallel share reaches the segmentation (a stricter count
+    for every region drops it)."""
+    cam = tumvi_kb(640, 480, 200.0)
+    renderer = synth.Renderer(cam, synth.load_scenario("crossing"))
+    f0, f3 = renderer.render(12), renderer.render(15)
+
+    def mask(**kw):
+        return fm.MotionDetector(cam, params=fm.Params(**kw), roi=renderer.roi()).detect(
+            f0.image, f3.image, f0.pose, f3.pose).mask > 0
+
+    one, two = mask(), mask(antiparallel_seeds=2)
+    obj = f3.moving > 0
+    assert one[obj].mean() > 0.3
+    np.testing.assert_array_equal(two, one)
+    # The same count for every region (the share's threshold at 0) drops this pedestrian's:
+    from fisheyemotion import segment
+    original = segment.LED
+    try:
+        segment.LED = 0.0
+        strict = mask(antiparallel_seeds=10**6)
+    finally:
+        segment.LED = original
+    assert not strict[obj].any()
+
+
 # ---- the photometric check of the static hypothesis ---------------------------------------
 
 def test_cell_residual_is_zero_for_the_true_shift_and_not_for_another():
