@@ -50,6 +50,7 @@ ADDITIONS = {
     "+ extension to half the threshold": {"extend_threshold": 0.0025},
     "+ extent 0.5 (watershed)": {"extent_reach": 0.5},
     "+ photometric check": {"photometric_check": True},
+    "+ regions closed over small gaps": {"region_gap": 1},
 }
 
 #: Ablation: weights (mu_e, mu_d, mu_h, mu_p) of each variant; "paper" is the configured Params.
