@@ -800,6 +800,13 @@ class MotionDetector:
                 z = np.fmax(z, res.epipolar / (sigma * p.epipolar_significance))
         return np.fmax(likelihood, np.where(np.isfinite(z), p.threshold * z, np.nan))
 
+    def _antiparallel_part(self, res: ConstraintResult) -> NDArray[np.float64]:
+        """The anti-parallel deviation's weighted part of each cell's likelihood (0 where it is
+        NaN): what the ground-contact test explains and what leads a region."""
+        p = self.params
+        return p.weights[3] * np.where(np.isnan(res.antiparallel), 0.0, res.antiparallel) / sum(
+            p.weights)
+
     def _explain_standing(self, res: ConstraintResult, likelihood, valid, ranges, range_error,
                           sigma, pose0) -> tuple[NDArray, NDArray[np.bool_]]:
         """The likelihood with the anti-parallel deviation removed from regions that stand on
@@ -810,8 +817,7 @@ class MotionDetector:
         cells explained by their arc alone, whose range disagrees with the model's."""
         p = self.params
         doubted = np.zeros(likelihood.shape, bool)
-        antiparallel = np.where(np.isnan(res.antiparallel), 0.0, res.antiparallel)
-        weighted = p.weights[3] * antiparallel / sum(p.weights)
+        weighted = self._antiparallel_part(res)
         with np.errstate(invalid="ignore", divide="ignore"):
             moving = valid & (likelihood > p.threshold)
             share = np.where(moving, weighted / likelihood, 0.0)
@@ -942,8 +948,7 @@ class MotionDetector:
         led = None
         if p.antiparallel_seeds > 1 and seeds is not None:
             with np.errstate(invalid="ignore", divide="ignore"):  # the anti-parallel share
-                led = now(p.weights[3] * np.nan_to_num(res.antiparallel) / sum(p.weights)
-                          / measured)
+                led = now(self._antiparallel_part(res) / measured)
         cell_mask, regions, labels = segment_cells(
             cell_likelihood, threshold=p.threshold, grid=p.grid, min_area=p.min_area, age=age,
             persistence=p.persistence, seed_threshold=p.seed_threshold,
