@@ -61,7 +61,8 @@ from .prior import EgoFlowPrior, lands_on, static_scene_targets
 from .range_consistency import RangeMemory
 from .refinement import PoseRefiner
 from .road import Road
-from .segment import segment_cells
+from .second_pass import better_explained, near_cells, second_flow
+from .segment import grown_from, segment_cells
 from .significance import cell_sigma, pixel_angle, pose_sigma
 from .static_scene import TRIANGULATION_PARALLAX, StaticScene, triangulate_range, world_points
 
@@ -102,6 +103,8 @@ class _Measured(NamedTuple):
     stream: bool
     check_curr: bool  # ``curr`` is the stream's newest frame: check its texture for later
     informed: bool  # the static prediction read the scene model's points (the growth's residual)
+    standing: NDArray[np.bool_] | None  # cells the ground-contact test explained
+    own_flow: bool  # the flow is the detector's own (its flow method may measure again)
 
 
 class MotionDetector:
@@ -166,6 +169,8 @@ class MotionDetector:
         self._inside_u8 = np.where(pixel_valid, 255, 0).astype(np.uint8)
         self._inside_bits = np.where(pixel_valid, -1, 0).astype(np.int32)
         self._flow = FlowEstimator(self.params)
+        self._second_flow: FlowEstimator | None = None
+        self._own_flow: NDArray[np.float32] | None = None
         self._prior = (EgoFlowPrior(camera, distance=self.params.prior_distance)
                        if self.params.flow_prior != "none" or self.params.photometric_check
                        else None)
@@ -268,7 +273,8 @@ class MotionDetector:
                 yield record(future.result(), pose, index)
 
         def measure(flow, backward, g0, g1, t0, t1) -> _Measured:
-            return self._measure(flow, t0, t1, backward, g0, curr=g1, stream=True)
+            return self._measure(flow, t0, t1, backward, g0, curr=g1, stream=True,
+                                 own_flow=True)
 
         with ThreadPoolExecutor(max_workers=1, thread_name_prefix="fisheyemotion-decide") as pool:
             try:
@@ -443,9 +449,10 @@ class MotionDetector:
         t0, t1 = check_rigid(pose0, "pose0"), check_rigid(pose1, "pose1")
         gray = None if prev is None else to_gray(prev, "prev", size=self.size)
         gray1 = None if curr is None else to_gray(curr, "curr", size=self.size)
+        own = flow is self._own_flow and gray is not None and gray1 is not None
         return self._from_flow(np.asarray(flow, np.float32), t0, t1,
                                None if backward is None else np.asarray(backward, np.float32),
-                               gray, curr=gray1, stream=stream)
+                               gray, curr=gray1, stream=stream, own_flow=own)
 
     def flow(self, prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray,
              pose1: NDArray, *, backward: bool = False):
@@ -454,6 +461,7 @@ class MotionDetector:
         ``prev``."""
         self._observe_ground(curr, pose1)
         forward = self._one_flow(prev, curr, pose0, pose1)
+        self._own_flow = forward  # detect_flow() of this array measures again as apply() does
         if not backward:
             return forward
         return forward, self._one_flow(curr, prev, pose1, pose0)
@@ -484,7 +492,8 @@ class MotionDetector:
 
     def _detect_gray(self, g0, g1, t0, t1, *, stream: bool = False) -> Detection:
         flow, backward = self._pair_flow(g0, g1, t0, t1)
-        return self._from_flow(flow, t0, t1, backward, g0, curr=g1, stream=stream)
+        return self._from_flow(flow, t0, t1, backward, g0, curr=g1, stream=stream,
+                               own_flow=True)
 
     def _resolvable_cells(self, t0: NDArray, t1: NDArray, *, parallax: bool) -> NDArray[np.bool_]:
         """Cells the static-scene prediction says can be scored: its point is seen in the current
@@ -540,12 +549,12 @@ class MotionDetector:
         return cell_error <= p.fb_tolerance + p.fb_relative * cell_mag
 
     def _from_flow(self, flow, t0, t1, backward=None, gray=None, *, curr=None,
-                   stream=False) -> Detection:
+                   stream=False, own_flow=False) -> Detection:
         return self._decide(self._measure(flow, t0, t1, backward, gray, curr=curr,
-                                          stream=stream))
+                                          stream=stream, own_flow=own_flow))
 
     def _measure(self, flow, t0, t1, backward=None, gray=None, *, curr=None,
-                 stream=False) -> _Measured:
+                 stream=False, own_flow=False) -> _Measured:
         """A pair's cells scored, up to the static-scene model's update: what the next pair's
         flow prior needs (:meth:`stream` computes that flow while :meth:`_decide` runs)."""
         p = self.params
@@ -560,6 +569,7 @@ class MotionDetector:
         if p.min_texture > 0 and gray is not None:
             valid &= self._textured_cells(gray)
         static_flow = None  # before the scene model learns from this pair (the prior uses it)
+        standing = None
         # The pair's static prediction read the stream's scene model, not only the road and the
         # far field (before the model learns from this pair).
         informed = stream and self.scene is not None and len(self.scene) > 0
@@ -592,8 +602,11 @@ class MotionDetector:
                 range_error = sigma / parallax if sigma is not None else None  # d(lambda)/lambda
                 conditioned = parallax >= np.sin(TRIANGULATION_PARALLAX)
             if contact:
+                before = likelihood
                 likelihood, doubted = self._explain_standing(res, likelihood, valid, ranges,
                                                              range_error, sigma, t0)
+                with np.errstate(invalid="ignore"):
+                    standing = likelihood < before
             if three:
                 likelihood = self._three_views(likelihood, valid & conditioned, ranges,
                                                range_error, cell_flow, gray, curr, t0, t1)
@@ -611,7 +624,7 @@ class MotionDetector:
                          sigma, static_flow, self.road,
                          self._prior_road(t0, t1) if p.grow > 0 else None, stream,
                          p.min_texture > 0 and curr is not None and bool(self._history)
-                         and self._history[-1][0] is curr, informed)
+                         and self._history[-1][0] is curr, informed, standing, own_flow)
 
     def _decide(self, m: _Measured) -> Detection:
         """A measured pair's result: the photometric check's seeds, the growth and the
@@ -644,6 +657,9 @@ class MotionDetector:
             if p.photometric_arc and seeds.any() and not res.static_camera:
                 seeds &= self._supported_off_arc(seeds, flow, cell_flow, m.rays1, t0, t1, gray,
                                                  curr, m.sigma, measured, m.road)
+        if p.second_pass > 0 and m.own_flow and gray is not None and curr is not None \
+                and not res.static_camera:
+            likelihood = self._second_pass(m, seeds)
         if p.grow > 0 and not res.static_camera:
             likelihood = self._grown(likelihood, valid, cell_flow, t0, t1, m.prior_road)
         if m.check_curr:  # for the stream's pair whose previous frame it will be
@@ -652,6 +668,47 @@ class MotionDetector:
         return self._assemble(flow, cell_flow, res, likelihood, valid, stream=m.stream,
                               seeds=seeds, curr=curr, static_flow=static_flow,
                               informed=m.informed)
+
+    def _second_pass(self, m: _Measured, seeds: NDArray[np.bool_] | None) -> NDArray[np.float64]:
+        """The pair's likelihood where a second flow pass (:mod:`fisheyemotion.second_pass`)
+        explains the frames better: on the groups of cells within ``params.second_pass`` cells
+        of those above the threshold that hold a seed (``seeds``, None: all), not on the cells
+        the ground-contact test explained."""
+        p = self.params
+        with np.errstate(invalid="ignore"):
+            above = m.valid & (m.likelihood > p.threshold)
+        if not above.any():
+            return m.likelihood
+        near = near_cells(above, p.second_pass) & m.valid
+        if seeds is not None:  # only around what can be reported: regions need a seed
+            near = grown_from(seeds & near, near)
+        if m.standing is not None:
+            near &= ~m.standing
+        if self._second_flow is None:  # its own estimator: stream() runs the next flow meanwhile
+            self._second_flow = FlowEstimator(p)
+        flow = second_flow(m.gray, m.curr, m.flow, near, p.grid, self._second_flow)
+        r, c = np.nonzero(near)
+        g = p.grid
+        cells = flow[:m.valid.shape[0] * g, :m.valid.shape[1] * g].reshape(
+            m.valid.shape[0], g, m.valid.shape[1], g, 2)[r, :, c].mean(axis=(1, 2))
+        at = self._centres[r, c] + cells
+        rays1, ok = self.camera.unproject(at)
+        # Where a cell's block, or the block it lands on, leaves the image, the new flow
+        # matches the replicated border: no evidence.
+        view = self._inner_view()
+        ok &= lands_on(at, ok, view, *self.size) & lands_on(self._centres[r, c], ok, view,
+                                                              *self.size)
+        res = constraints(self._rays0[r, c], rays1, m.t0, m.t1, road=m.road, params=p)
+        likelihood = res.likelihood
+        if m.sigma is not None and _counts_sigmas(p):
+            likelihood = self._with_significance(res, m.sigma[r, c], likelihood)
+        out = m.likelihood.copy()
+        take = ok & res.valid & np.isfinite(likelihood)
+        if take.any():  # the flow that explains the frames better measures the cell
+            take[take] = better_explained(m.gray, m.curr, m.flow, flow, g, r[take], c[take],
+                                          near.shape)
+        out[r[take], c[take]] = likelihood[take]
+        return out
 
     def _cell_pixel_angle(self) -> NDArray[np.float64]:
         """Radians per pixel at each cell centre (:func:`~fisheyemotion.significance.pixel_angle`),

@@ -291,6 +291,17 @@ class Params:
         other. ``data/params/fewer_false_alarms.yaml`` sets 2: fewer false-positive frames
         at the cost of pedestrians stepping out with a single seed (docs/evaluation.md,
         *Fewer false alarms*).
+    second_pass : int
+        Cells. The flow method measures the pair again, warped back by its own first result,
+        on the groups of cells within this many cells of those above the threshold that hold a
+        seed (:mod:`fisheyemotion.second_pass`): it measures a residual short, so an object's
+        motion is measured in full only by a second pass. A cell takes the second pass's
+        likelihood (higher or lower) where the new flow explains the frames better by
+        ``second_pass.BETTER_BY`` grey levels; cells the ground-contact test explained keep
+        theirs. Only for the detector's own flow (``apply``, ``detect``, ``stream``, or
+        ``detect_flow`` given the array :meth:`MotionDetector.flow` returned). 0: off (the
+        paper; ``data/params/no_second_pass.yaml``). Measured in docs/evaluation.md (*Second
+        flow pass*).
     saturation : float
         Likelihood mapped to full colour when drawing (paper: 0.02).
     """
@@ -352,6 +363,7 @@ class Params:
     min_area: int = 100
     region_gap: int = 1
     antiparallel_seeds: int = 1
+    second_pass: int = 2
     saturation: float = 0.02
 
     def __post_init__(self) -> None:
@@ -393,7 +405,7 @@ class Params:
                              f"{_short(self.temporal_decay)}")
         for name, low in (("grid", 1), ("min_area", 0), ("frame_gap", 1), ("persistence", 1),
                           ("scene_memory", 1), ("grow", 0), ("region_gap", 0),
-                          ("antiparallel_seeds", 1),
+                          ("antiparallel_seeds", 1), ("second_pass", 0),
                           ("contact_columns", 0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
@@ -422,7 +434,7 @@ class Params:
         return cls(**{"flow_prior": "none", "scene_prior": False, "scene_bootstrap": False,
                       "ground_contact": False,
                       "significance": 0.0, "epipolar_significance": 0.0, "grow": 0,
-                      "extent_reach": 0.0, "region_gap": 0,
+                      "extent_reach": 0.0, "region_gap": 0, "second_pass": 0,
                       "photometric_check": False,
                       "fb_check": False,
                       "frame_gap": 1, "min_texture": 0.0,

@@ -87,15 +87,15 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
     if seed_threshold > threshold:  # hysteresis: regions need a cell above the seed threshold
         # 8-connected, as the regions are (scikit-image's hysteresis joins 4-connected cells
         # only, which split a region at a diagonal step).
-        moving = _extended(values > seed_threshold, values > threshold)
+        moving = grown_from(values > seed_threshold, values > threshold)
     else:
         moving = values > threshold
     if 0 < extend_threshold < threshold:
         # Only regions that count as detections by themselves seed an extension: a speck under
         # min_area must not grow past it through weak cells.
         kept, _, _ = _kept_regions(moving, values, grid, min_area, None, 1)
-        moving = _extended(kept, values > extend_threshold)
-    candidates = moving if seeds is None else _extended(seeds & moving, moving)
+        moving = grown_from(kept, values > extend_threshold)
+    candidates = moving if seeds is None else grown_from(seeds & moving, moving)
     if gap > 0:  # the pieces are all the cells above the threshold, seeded or not
         candidates = _joined(candidates, moving, values, grid, min_area, age, persistence, gap)
     if seeds is not None and led is not None and led_seeds > 1 and candidates.any():
@@ -125,7 +125,7 @@ def _seeded_enough(candidates: NDArray[np.bool_], seeds: NDArray[np.bool_],
     return keep[labels]
 
 
-def _extended(seeds: NDArray[np.bool_], weak: NDArray[np.bool_]) -> NDArray[np.bool_]:
+def grown_from(seeds: NDArray[np.bool_], weak: NDArray[np.bool_]) -> NDArray[np.bool_]:
     """The 8-connected components of ``seeds | weak`` that hold a seed cell."""
     n, labels = cv2.connectedComponents((seeds | weak).astype(np.uint8), connectivity=8,
                                         ltype=cv2.CV_32S)
@@ -148,9 +148,9 @@ def _joined(candidates: NDArray[np.bool_], moving: NDArray[np.bool_], values: ND
     # filled the background at a region's corners (docs/evaluation.md).
     plus = cv2.getStructuringElement(cv2.MORPH_CROSS, (2 * gap + 1, 2 * gap + 1))
     near = cv2.dilate(moving.astype(np.uint8), plus) > 0  # pieces that may join
-    taken = _extended(kept, near) & moving
+    taken = grown_from(kept, near) & moving
     closed = cv2.morphologyEx(taken.astype(np.uint8), cv2.MORPH_CLOSE, plus) > 0
-    return _extended(kept & closed, closed)
+    return grown_from(kept & closed, closed)
 
 
 def _kept_regions(moving: NDArray[np.bool_], values: NDArray[np.float64], grid: int,

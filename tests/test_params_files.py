@@ -27,6 +27,8 @@ CASES = {
                                  "photometric_view: expected a bool"),
     "no_region_gap.yaml": ("region_gap", 0, 1, 0, (-1, 1.5, True),
                            "region_gap: expected an integer >= 0"),
+    "no_second_pass.yaml": ("second_pass", 0, 2, 0, (-1, 2.0, False),
+                            "second_pass: expected an integer >= 0"),
 }
 
 
