@@ -16,8 +16,9 @@ and refined poses over several draws, and with the scene model off, how far a wa
 from the true depth, with and without occlusions handled, would go, how far off a stream's
 first pair's prior is with and without the scene-model bootstrap, the share of pairs with a
 false region by the frame they end at, the streets' Table 2 with the ground-contact test
-given the true ranges, where a moving object's coverage is lost step by step, and the crossing
-pedestrians' cells flagged by their elevation from the plane through the epipole.
+given the true ranges, where a moving object's coverage is lost step by step, the crossing
+pedestrians' cells flagged by their elevation from the plane through the epipole, and how far
+the flow departs from the prior it was warped by.
 
     .venv/bin/python docs/measurements.py true_depth_prior_bounds   # one of them, by name
 """
@@ -1088,6 +1089,100 @@ def crossing_cells_by_elevation(names=("crossing", "street_kb", "street_heldout_
     print("Crossing pedestrians' scored cells given the exact flow, by elevation (deg) from the "
           "horizontal plane through the epipole:")
     print(table.round(4).to_string())
+
+
+def flow_follows_prior(name: str = "street_kb", frame: int = 30) -> None:
+    """How far the flow departs from the prior it was warped by (``Params()``, Farneback, the
+    stream run up to ``frame``; textured static pixels of finite range whose predicted point
+    stays in view): by the prior's error against the exact flow, the share of pixels whose flow
+    is within 2 px of the exact one and how far it moved off its prior; then the same frame
+    warped by the prior plus a uniform horizontal offset, where it is right to within 1 px,
+    and the median error of the flow after one, two and three passes (each warped back by the
+    one before)."""
+    from fisheyemotion.eval.evaluate import world_transform
+    from fisheyemotion.flow import warp_by
+
+    seq = Sequence(SEQUENCES / name)
+    renderer = Renderer(seq.camera, load_scenario(seq.path / "scenario.yaml"), supersample=1)
+    grays, poses = _grays(seq), seq.poses
+    p = fm.Params()
+    gap = p.frame_gap
+    _, road = world_transform("scene", poses[0])
+    det = fm.MotionDetector(seq.camera, road, params=p, roi=seq.roi())
+    for i in range(gap):
+        det._observe_ground(grays[i], poses[i])
+    for k in range(gap, frame + 1):
+        g0, g1, t0, t1 = grays[k - gap], grays[k], poses[k - gap], poses[k]
+        if k == gap:
+            det._bootstrap_scene([(grays[i], poses[i]) for i in range(gap + 1)], None)
+        if k == frame:
+            prior, seen = det._static_prior(t0, t1)
+        flow = det.flow(g0, g1, t0, t1)
+        det.detect_flow(flow, t0, t1, prev=g0, curr=g1, stream=True)
+    exact = renderer.flow(frame, gap=gap)
+    laplacian = cv2.Laplacian(cv2.GaussianBlur(g0, (3, 3), 0), cv2.CV_32F)
+    textured = cv2.blur(np.abs(laplacian), (5, 5)) > 4
+    static = ((seq.mask(frame) == 0) & seq.camera.valid_pixel_mask() & seen & textured
+              & np.isfinite(exact).all(-1) & np.isfinite(renderer.render(frame - gap).range))
+    prior_error = np.linalg.norm(prior - exact, axis=-1)
+    flow_error = np.linalg.norm(flow - exact, axis=-1)
+    moved = np.linalg.norm(flow - prior, axis=-1)
+    print(f"{name}, pair {frame - gap}-{frame}: the flow against the prior it was warped by "
+          "(textured static pixels)")
+    for lo, hi in ((0, 2), (2, 5), (5, 20), (20, np.inf)):
+        band = static & (prior_error >= lo) & (prior_error < hi)
+        print(f"  prior {lo}-{hi} px off: {band.sum():6d} px, flow within 2 px "
+              f"{np.mean(flow_error[band] < 2):.0%}, moved off the prior {np.median(moved[band]):.2f}"
+              " px (median)")
+    right = static & (prior_error < 1)
+    fb = p.farneback
+
+    def farneback(a, b):
+        return cv2.calcOpticalFlowFarneback(a, b, None, fb["pyr_scale"], fb["levels"],
+                                            fb["winsize"], fb["iterations"], fb["poly_n"],
+                                            fb["poly_sigma"], 0)
+
+    print("  the prior plus a uniform offset, where it was within 1 px: median error after "
+          "1 / 2 / 3 passes")
+    for offset in (0, 2, 5, 10, 20):
+        current = prior + np.float32([offset, 0])
+        errors = []
+        for _ in range(3):
+            warped = warp_by(g1, current)
+            np.copyto(warped, g0, where=~seen)
+            current = current + farneback(g0, warped)
+            errors.append(np.median(np.linalg.norm(current - exact, axis=-1)[right]))
+        print(f"  {offset:2d} px: " + " / ".join(f"{e:.2f}" for e in errors) + " px")
+
+
+def photometric_search_draws(reaches=(4.0, 16.0), draws: int = 4) -> None:
+    """``Params(photometric_search=r)`` for each reach over every demo sequence (Farneback),
+    with the true poses and ``draws`` negligible perturbations (:func:`_negligible`): the
+    false-positive frames per scene group (mean and SD of the runs), crossing detection over
+    all scenes and the held-out streets' approaching detection (means)."""
+    from fisheyemotion.eval.evaluate import combine, evaluate, sequence_paths
+    from fisheyemotion.eval.metrics import table2
+    from fisheyemotion.eval.report import groups_table
+
+    paths = sequence_paths([SEQUENCES])
+    for reach in reaches:
+        params = fm.Params(photometric_search=reach)
+        runs = [evaluate(paths, params, ablation=False, progress=False)]
+        runs += [evaluate(paths, params, ablation=False, progress=False, poses="perturbed",
+                          noise=_negligible(seed)) for seed in range(draws)]
+        groups = [groups_table(r).set_index("scenes") for r in runs]
+        cells = []
+        for scenes in groups[0].index:
+            fp = np.array([100 * g.loc[scenes, "FP frames"] for g in groups])
+            cells.append(f"{scenes} {fp.mean():.1f} +- {fp.std(ddof=1):.1f} %")
+        crossing = np.mean([100 * table2(*(combine(r)[t] for t in ("objects", "frames")))
+                            .set_index("category").loc["crossing", "detection_rate"]
+                            for r in runs])
+        approaching = np.mean([100 * g.loc["street, held out", "approaching det."]
+                               for g in groups])
+        print(f"photometric_search {reach:g} px, {len(runs)} runs: false-positive frames "
+              + ", ".join(cells) + f"; crossing detection (all) {crossing:.1f} %, held-out "
+              f"approaching {approaching:.1f} %")
 
 if __name__ == "__main__":
     if not SEQUENCES.is_dir():

@@ -51,6 +51,7 @@ ADDITIONS = {
     "+ extent 0.5 (watershed)": {"extent_reach": 0.5},
     "+ photometric check": {"photometric_check": True},
     "+ regions closed over small gaps": {"region_gap": 1},
+    "+ second flow pass": {"second_pass": 2},
 }
 
 #: Ablation: weights (mu_e, mu_d, mu_h, mu_p) of each variant; "paper" is the configured Params.

@@ -145,8 +145,9 @@ class Params:
         best explains the frames: the deviation is supported only if the measured flow
         explains them better than all of those (a flow error at a depth discontinuity is off
         the static point in any direction, so the arc's nearest point can be pixels from it).
-        0 compares with the nearest point only (0.7.2). Chosen on all the scenes
-        (docs/evaluation.md, *Photometric search*).
+        0 compares with the nearest point only (0.7.2); 4 until 0.8.12. 16: where a wrong
+        static prior was not corrected, the flow stays 5-20 px from the static
+        correspondence (docs/evaluation.md, *Photometric search*, *Second flow pass*).
     grow : int
         Cells a detected region may grow by into neighbours whose residual flow (measured minus
         the static scene's) is like the region's (:mod:`fisheyemotion.grow`): the object's flow
@@ -335,7 +336,7 @@ class Params:
     photometric_tolerance: float = 0.25
     photometric_arc: bool = True
     photometric_view: bool = True
-    photometric_search: float = 4.0
+    photometric_search: float = 16.0
     pose_refinement: str = "off"
     refine_tolerance: float = 0.1
     contact_ratio: float = 1.05
