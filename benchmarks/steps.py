@@ -41,10 +41,11 @@ ROOT = Path(__file__).resolve().parents[1]
 ROUNDS = 100
 #: Methods of MotionDetector, then functions as the detector module calls them.
 METHODS = ("_measure", "_decide", "_assemble", "_explain_standing", "_textured_cells",
-           "_supported_off_arc", "_grown", "_temporal_filter", "_static_prior", "_one_flow")
+           "_supported_off_arc", "_grown", "_temporal_filter", "_static_prior", "_one_flow",
+           "_second_pass")
 FUNCTIONS = ("constraints", "cell_sigma", "triangulate_range", "grid_upsample", "grow_to_extent",
              "static_explained", "cell_residual", "grid_transfer", "segment_cells", "grid_average",
-             "warp_by")
+             "warp_by", "second_flow", "better_explained")
 
 
 def _pair(which: str):

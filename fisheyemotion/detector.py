@@ -61,7 +61,7 @@ from .prior import EgoFlowPrior, lands_on, static_scene_targets
 from .range_consistency import RangeMemory
 from .refinement import PoseRefiner
 from .road import Road
-from .second_pass import better_explained, near_cells, second_flow
+from .second_pass import SIZE_STEP, BoxFlows, better_explained, near_cells, second_flow
 from .segment import grown_from, segment_cells
 from .significance import cell_sigma, pixel_angle, pose_sigma
 from .static_scene import TRIANGULATION_PARALLAX, StaticScene, triangulate_range, world_points
@@ -169,7 +169,7 @@ class MotionDetector:
         self._inside_u8 = np.where(pixel_valid, 255, 0).astype(np.uint8)
         self._inside_bits = np.where(pixel_valid, -1, 0).astype(np.int32)
         self._flow = FlowEstimator(self.params)
-        self._second_flow: FlowEstimator | None = None
+        self._second_flow: BoxFlows | None = None
         self._own_flow: NDArray[np.float32] | None = None
         self._prior = (EgoFlowPrior(camera, distance=self.params.prior_distance)
                        if self.params.flow_prior != "none" or self.params.photometric_check
@@ -684,9 +684,10 @@ class MotionDetector:
             near = grown_from(seeds & near, near)
         if m.standing is not None:
             near &= ~m.standing
-        if self._second_flow is None:  # its own estimator: stream() runs the next flow meanwhile
-            self._second_flow = FlowEstimator(p)
-        flow = second_flow(m.gray, m.curr, m.flow, near, p.grid, self._second_flow)
+        if self._second_flow is None:  # its own estimators: stream() runs the next flow meanwhile
+            self._second_flow = BoxFlows(lambda: FlowEstimator(p))
+        flow = second_flow(m.gray, m.curr, m.flow, near, p.grid, self._second_flow,
+                           size_step=SIZE_STEP if p.flow == "dis" else 1)
         r, c = np.nonzero(near)
         g = p.grid
         cells = flow[:m.valid.shape[0] * g, :m.valid.shape[1] * g].reshape(

@@ -23,13 +23,15 @@ which of the two measurements holds, in either direction.
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from collections.abc import Callable
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["BETTER_BY", "MARGIN", "better_explained", "near_cells", "second_flow"]
+__all__ = ["BETTER_BY", "MARGIN", "SIZE_STEP", "BoxFlows", "better_explained", "near_cells",
+           "second_flow"]
 
 #: Pixels of context around the cells' box that the second pass's flow method sees.
 MARGIN = 16
@@ -40,8 +42,38 @@ MARGIN = 16
 #: flagged (0: 1.03 %, 1: 0.99 %, 2: 0.96 %, as without the pass; ``docs/evaluation.md``).
 BETTER_BY = 2.0
 
-#: The smallest side of the box handed to the flow method (OpenCV's pyramids need some room).
+#: Box sides are multiples of this, pixels.
+SIZE_STEP = 32
+
+#: The smallest side of a box (OpenCV's pyramids need some room).
 _MIN_SIDE = 48
+
+
+class BoxFlows:
+    """The detector's flow method for the second pass's boxes: one estimator per box size, the
+    last ``keep`` sizes kept (a DIS object reallocates its buffers when the size changes, about
+    3 ms with the ultrafast preset, more than its flow on a box).
+
+    Parameters
+    ----------
+    make : callable
+        ``make() -> estimator``, ``estimator(a, b) -> (h, w, 2)`` float32.
+    keep : int
+    """
+
+    def __init__(self, make: Callable[[], Callable], keep: int = 16) -> None:
+        self._make, self._keep = make, int(keep)
+        self._by_size: OrderedDict[tuple[int, int], Callable] = OrderedDict()
+
+    def __call__(self, a: NDArray[np.uint8], b: NDArray[np.uint8]) -> NDArray[np.float32]:
+        size = a.shape[:2]
+        estimator = self._by_size.pop(size, None)
+        if estimator is None:
+            estimator = self._make()
+            while len(self._by_size) >= self._keep:
+                self._by_size.popitem(last=False)
+        self._by_size[size] = estimator
+        return estimator(a, b)
 
 
 def near_cells(flagged: NDArray[np.bool_], reach: int) -> NDArray[np.bool_]:
@@ -65,8 +97,8 @@ def near_cells(flagged: NDArray[np.bool_], reach: int) -> NDArray[np.bool_]:
 
 def second_flow(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArray[np.float32],
                 cells: NDArray[np.bool_], grid: int,
-                estimator: Callable[[NDArray[np.uint8], NDArray[np.uint8]], NDArray[np.float32]]
-                ) -> NDArray[np.float32]:
+                estimator: Callable[[NDArray[np.uint8], NDArray[np.uint8]], NDArray[np.float32]],
+                *, size_step: int = 1) -> NDArray[np.float32]:
     """``flow`` with a second pass added on ``cells``: the residual that ``estimator`` measures
     between ``prev`` and ``curr`` warped back by ``flow``, on the image box around each
     8-connected group of cells (plus :data:`MARGIN` pixels of context), kept on the group's
@@ -84,6 +116,9 @@ def second_flow(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArray[
     estimator : callable
         ``estimator(a, b) -> (h, w, 2)`` float32 flow from ``a`` to ``b`` (the detector's own
         flow method, without a prior).
+    size_step : int
+        Box sides are rounded up to a multiple of this (:data:`SIZE_STEP` for DIS, which keeps
+        buffers per size: :class:`BoxFlows`; 1 for Farneback, whose time goes with the area).
 
     Returns
     -------
@@ -98,8 +133,8 @@ def second_flow(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArray[
                                                            ltype=cv2.CV_32S)
     for i in range(1, n):
         c0, r0, cw, ch = (int(v) for v in stats[i, :4])
-        x0, x1 = _span(c0 * grid, (c0 + cw) * grid, w)
-        y0, y1 = _span(r0 * grid, (r0 + ch) * grid, h)
+        x0, x1 = _span(c0 * grid, (c0 + cw) * grid, w, size_step)
+        y0, y1 = _span(r0 * grid, (r0 + ch) * grid, h, size_step)
         box = flow[y0:y1, x0:x1]
         grid_x, grid_y = np.meshgrid(np.arange(x0, x1, dtype=np.float32),
                                      np.arange(y0, y1, dtype=np.float32))
@@ -153,12 +188,10 @@ def better_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
         return after < before - BETTER_BY
 
 
-def _span(lo: int, hi: int, size: int) -> tuple[int, int]:
-    """``[lo, hi)`` widened by :data:`MARGIN` and to at least ``_MIN_SIDE``, within ``[0, size)``."""
+def _span(lo: int, hi: int, size: int, step: int) -> tuple[int, int]:
+    """``[lo, hi)`` widened by :data:`MARGIN`, then to a multiple of ``step`` and at least
+    ``_MIN_SIDE``, within ``[0, size)``."""
     lo, hi = max(0, lo - MARGIN), min(size, hi + MARGIN)
-    short = _MIN_SIDE - (hi - lo)
-    if short > 0:
-        lo = max(0, lo - (short + 1) // 2)
-        hi = min(size, max(hi + short // 2, lo + _MIN_SIDE))
-        lo = max(0, min(lo, hi - _MIN_SIDE))
-    return lo, hi
+    want = min(size, max(_MIN_SIDE, -(-(hi - lo) // step) * step))
+    lo = max(0, min(lo - (want - (hi - lo)) // 2, size - want))
+    return lo, lo + want

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 import fisheyemotion as fm
 from fisheyemotion import synth
 from fisheyemotion.flow import FlowEstimator
-from fisheyemotion.second_pass import MARGIN, better_explained, near_cells, second_flow
+from fisheyemotion.second_pass import MARGIN, BoxFlows, better_explained, near_cells, second_flow
 
 from .cameras import tumvi_kb
 
@@ -157,3 +157,38 @@ def test_only_the_detectors_own_flow_is_measured_again(crossing_pair):
     off = detector(second_pass=0).detect(f0.image, f3.image, f0.pose, f3.pose)
     np.testing.assert_array_equal(taken.likelihood, off.likelihood)
     assert (whole.likelihood > off.likelihood).any()
+
+
+def test_box_sides_are_rounded_up_to_the_step_and_still_hold_the_group():
+    grid = 5
+    prev = _textured(5, 240, 320)
+    cells = np.zeros((48, 64), bool)
+    cells[3:6, 60:63] = True  # near the right edge: the box is shifted inwards, not cut
+    seen = []
+
+    def estimator(a, b):
+        seen.append(a.shape)
+        return np.zeros(a.shape + (2,), np.float32)
+
+    second_flow(prev, prev, np.zeros(prev.shape + (2,), np.float32), cells, grid, estimator,
+                size_step=32)
+    (h, w), = seen
+    assert h % 32 == 0 and w % 32 == 0 and h >= 15 + 2 * MARGIN and w <= 320
+
+
+def test_box_flows_keep_one_estimator_per_size_and_forget_the_oldest():
+    made = []
+
+    def make():
+        made.append(object())
+        n = len(made)
+        return lambda a, b: np.full(a.shape + (2,), n, np.float32)
+
+    flows = BoxFlows(make, keep=2)
+    a, b, c = (np.zeros(s, np.uint8) for s in ((48, 48), (48, 64), (64, 64)))
+    assert flows(a, a)[0, 0, 0] == 1 and flows(b, b)[0, 0, 0] == 2
+    assert flows(a, a)[0, 0, 0] == 1 and len(made) == 2    # the same size: the same estimator
+    flows(c, c)                                             # a third size: (48, 64) goes
+    assert len(made) == 3 and flows(a, a)[0, 0, 0] == 1
+    flows(b, b)
+    assert len(made) == 4
