@@ -189,26 +189,17 @@ def test_stream_640x480(benchmark, frames, name, threads, api, poses):
     flow_s: list[float] = []  # the flow method's own time (cv2's call), this round so far
     rounds: list[tuple[float, float, float]] = []  # (all, flow, second pass's flow) seconds
 
-    def timed_flow(estimate):
-        def call(*args, **kwargs):
-            start = time.perf_counter()
-            try:
-                return estimate(*args, **kwargs)
-            finally:
-                flow_s.append(time.perf_counter() - start)
-        return call
-
     second_s: list[float] = []  # of which the second pass's calls
 
-    def timed_second(estimate):
+    def timed_flow(estimate, *also: list[float]):
         def call(*args, **kwargs):
             start = time.perf_counter()
             try:
                 return estimate(*args, **kwargs)
             finally:
                 elapsed = time.perf_counter() - start
-                flow_s.append(elapsed)
-                second_s.append(elapsed)
+                for times in (flow_s, *also):
+                    times.append(elapsed)
         return call
 
     def setup():
@@ -220,7 +211,7 @@ def test_stream_640x480(benchmark, frames, name, threads, api, poses):
         det._flow = timed_flow(det._flow)
         # The second pass's flow-method calls (Params.second_pass) are the flow method's too;
         # their share is reported apart (extra_info["second_flow_ms"]).
-        det._second_flow = BoxFlows(lambda: timed_second(FlowEstimator(det.params)))
+        det._second_flow = BoxFlows(lambda: timed_flow(FlowEstimator(det.params), second_s))
         return (det,), {}
 
     def run(det):
