@@ -690,9 +690,7 @@ class MotionDetector:
                            size_step=SIZE_STEP if p.flow == "dis" else 1)
         r, c = np.nonzero(near)
         g = p.grid
-        cells = flow[:m.valid.shape[0] * g, :m.valid.shape[1] * g].reshape(
-            m.valid.shape[0], g, m.valid.shape[1], g, 2)[r, :, c].mean(axis=(1, 2))
-        at = self._centres[r, c] + cells
+        at = self._centres[r, c] + grid_average(flow, g)[r, c]
         rays1, ok = self.camera.unproject(at)
         # Where a cell's block, or the block it lands on, leaves the image, the new flow
         # matches the replicated border: no evidence.
