@@ -17,8 +17,9 @@ from the true depth, with and without occlusions handled, would go, how far off 
 first pair's prior is with and without the scene-model bootstrap, the share of pairs with a
 false region by the frame they end at, the streets' Table 2 with the ground-contact test
 given the true ranges, where a moving object's coverage is lost step by step, the crossing
-pedestrians' cells flagged by their elevation from the plane through the epipole, and how far
-the flow departs from the prior it was warped by.
+pedestrians' cells flagged by their elevation from the plane through the epipole, how far
+the flow departs from the prior it was warped by, and the photometric search's reach over five
+runs.
 
     .venv/bin/python docs/measurements.py true_depth_prior_bounds   # one of them, by name
 """
@@ -1210,3 +1211,5 @@ if __name__ == "__main__":
     contact_with_true_ranges()
     coverage_by_step()
     crossing_cells_by_elevation()
+    flow_follows_prior()
+    photometric_search_draws()
