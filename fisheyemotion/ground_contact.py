@@ -28,13 +28,12 @@ columns' ratios).
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from .calib.base import CameraModel
 from .road import Road
-from .segment import LED
+from .segment import led_regions
 from .static_scene import world_points
 
 __all__ = ["WALK_PERCENTILE", "contact_ratios", "smooth_columns", "standing_regions"]
@@ -166,20 +165,10 @@ def standing_regions(moving: NDArray[np.bool_], antiparallel_share: NDArray[np.f
     -------
     ndarray of bool, shape (rows, cols)
     """
-    # OpenCV's labelling (8-connected), as segment.py: no scipy import on a first detection.
-    n, labels = cv2.connectedComponents(moving.astype(np.uint8), connectivity=8,
-                                        ltype=cv2.CV_32S)
-    n -= 1
-    if n == 0:
-        return np.zeros_like(moving)
-    flat = labels.ravel()
-    cells = np.bincount(flat, minlength=n + 1)[1:]
-    share = np.bincount(flat, weights=np.nan_to_num(antiparallel_share).ravel(),
-                        minlength=n + 1)[1:] / np.maximum(cells, 1)
-    led = share >= LED
+    labels, led = led_regions(moving, antiparallel_share)
     if not led.any():
         return np.zeros_like(moving)
-    candidates = np.where(np.r_[False, led][labels], labels, 0)
+    candidates = np.where(led[labels], labels, 0)
     per_column = smooth_columns(
         contact_ratios(candidates, ranges, rays, pose, camera, road, grid, steps=steps), columns)
     region = _row_nanpercentile(per_column, 75.0)

@@ -109,18 +109,41 @@ def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, gri
 LED = 0.5
 
 
+def led_regions(cells: NDArray[np.bool_], share: NDArray[np.float64]
+                ) -> tuple[NDArray[np.int32], NDArray[np.bool_]]:
+    """The 8-connected regions of ``cells`` and which of them one term leads.
+
+    Parameters
+    ----------
+    cells : ndarray of bool, shape (rows, cols)
+    share : ndarray, shape (rows, cols)
+        Each cell's share of its likelihood from the term (NaN counts 0).
+
+    Returns
+    -------
+    labels : ndarray of int32, shape (rows, cols)
+        Regions ``1..n``, 0 elsewhere.
+    led : ndarray of bool, shape (n + 1,)
+        ``led[i]``: region ``i``'s mean share is at least :data:`LED` (``led[0]`` False).
+    """
+    n, labels = cv2.connectedComponents(cells.astype(np.uint8), connectivity=8,
+                                        ltype=cv2.CV_32S)
+    flat = labels.ravel()
+    counts = np.bincount(flat, minlength=n)
+    mean = np.bincount(flat, weights=np.nan_to_num(share).ravel(), minlength=n) / np.maximum(
+        counts, 1)
+    led = mean >= LED
+    led[0] = False
+    return labels, led
+
+
 def _seeded_enough(candidates: NDArray[np.bool_], seeds: NDArray[np.bool_],
                    led: NDArray[np.float64], led_seeds: int) -> NDArray[np.bool_]:
     """``candidates`` without the regions (8-connected) that the term of ``led`` leads and
     that hold fewer than ``led_seeds`` seed cells."""
-    n, labels = cv2.connectedComponents(candidates.astype(np.uint8), connectivity=8,
-                                        ltype=cv2.CV_32S)
-    flat = labels.ravel()
-    cells = np.bincount(flat, minlength=n)
-    share = np.bincount(flat, weights=np.nan_to_num(led).ravel(), minlength=n) / np.maximum(
-        cells, 1)
-    held = np.bincount(labels[seeds & candidates], minlength=n)
-    keep = held >= np.where(share >= LED, led_seeds, 1)
+    labels, leads = led_regions(candidates, led)
+    held = np.bincount(labels[seeds & candidates], minlength=len(leads))
+    keep = held >= np.where(leads, led_seeds, 1)
     keep[0] = False
     return keep[labels]
 
