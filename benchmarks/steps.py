@@ -44,8 +44,8 @@ METHODS = ("_measure", "_decide", "_assemble", "_explain_standing", "_textured_c
            "_supported_off_arc", "_grown", "_temporal_filter", "_static_prior", "_one_flow",
            "_second_pass")
 FUNCTIONS = ("constraints", "cell_sigma", "triangulate_range", "grid_upsample", "grow_to_extent",
-             "static_explained", "cell_residual", "grid_transfer", "segment_cells", "grid_average",
-             "warp_by", "second_flow", "better_explained")
+             "static_explained", "cell_residual", "grid_transfer", "pixel_transfer",
+             "segment_cells", "grid_average", "warp_by", "second_flow", "better_explained")
 
 
 def _pair(which: str):

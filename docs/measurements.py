@@ -1101,6 +1101,7 @@ def flow_follows_prior(name: str = "street_kb", frame: int = 30) -> None:
     and the median error of the flow after one, two and three passes (each warped back by the
     one before)."""
     from fisheyemotion.eval.evaluate import world_transform
+
     from fisheyemotion.flow import warp_by
 
     seq = Sequence(SEQUENCES / name)

@@ -52,6 +52,7 @@ ADDITIONS = {
     "+ photometric check": {"photometric_check": True},
     "+ regions closed over small gaps": {"region_gap": 1},
     "+ second flow pass": {"second_pass": 2},
+    "+ pixels carried by their own flow": {"carry_share": 0.6},
 }
 
 #: Ablation: weights (mu_e, mu_d, mu_h, mu_p) of each variant; "paper" is the configured Params.

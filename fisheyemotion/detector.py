@@ -40,6 +40,7 @@ from .flow import (
     grid_gather,
     grid_transfer,
     grid_upsample,
+    pixel_transfer,
     warp_by,
 )
 from .frames import to_gray
@@ -984,6 +985,12 @@ class MotionDetector:
         # throw its cell across the image.
         carrier = cv2.medianBlur(np.ascontiguousarray(cell_flow, dtype=np.float32), 3)
         source = grid_transfer(carrier, measured, p.grid)
+        if p.carry_share > 0:
+            # ... and the flagged cells' pixels by their own flow: an object a few cells wide
+            # moving across its background is not carried partly beside itself.
+            with np.errstate(invalid="ignore"):
+                flagged = valid & (measured > p.threshold)
+            source = pixel_transfer(source, flow, measured, flagged, p.grid, share=p.carry_share)
         valid_now = grid_gather(valid, source, False)
 
         def to_image(cells: NDArray[np.float64]) -> NDArray[np.float32]:

@@ -136,6 +136,72 @@ def grid_transfer(cell_flow: NDArray, order: NDArray, grid: int, *,
     return out
 
 
+def pixel_transfer(source: NDArray[np.intp], flow: NDArray[np.float32], order: NDArray,
+                   cells: NDArray[np.bool_], grid: int, *, share: float) -> NDArray[np.intp]:
+    """A :func:`grid_transfer` map refined by the pixels of some cells, each moved by its own flow.
+
+    :func:`grid_transfer` moves a cell by one flow (its centre's landing cell takes it), so an
+    object two or three cells wide that moves across its background lands partly beside itself
+    (its cells' flow is mixed with the background's, and a cell is all or nothing). Here every
+    pixel of ``cells`` moves by its own flow; a cell of the second frame that those pixels cover
+    by at least ``share`` of its area takes, among the cells whose pixels land on it, the one
+    with the largest ``order``, where that is larger than its source's.
+
+    Parameters
+    ----------
+    source : ndarray of intp, shape (rows, cols)
+        A :func:`grid_transfer` map (flat source index, -1 where none).
+    flow : ndarray, shape (H, W, 2)
+        The dense flow (pixels of whole cells are read; NaN: the pixel does not move anywhere).
+    order : ndarray, shape (rows, cols)
+        Priority (e.g. the likelihood); NaN ranks lowest.
+    cells : ndarray of bool, shape (rows, cols)
+        The cells whose pixels move (e.g. those above the detection threshold).
+    grid : int
+        Cell size, pixels.
+    share : float
+        Share of a cell's pixels (0-1] that must land on it.
+
+    Returns
+    -------
+    ndarray of intp, shape (rows, cols)
+    """
+    rows, cols = source.shape
+    if not cells.any():
+        return source
+    rank = np.where(np.isnan(order), -np.inf, order).ravel()
+    # The pixels of the cells, row-major within each cell's block (one block per cell).
+    r, c = np.nonzero(cells)
+    dy, dx = np.divmod(np.arange(grid * grid), grid)
+    ys = (r[:, None] * grid + dy).ravel()
+    xs = (c[:, None] * grid + dx).ravel()
+    moved = flow[ys, xs]
+    with np.errstate(invalid="ignore"):
+        # Pixel centres are integers: pixel q lies in cell floor((q + 0.5) / grid).
+        tc = np.floor((xs + moved[:, 0] + 0.5) / grid)
+        tr = np.floor((ys + moved[:, 1] + 0.5) / grid)
+        ok = (tc >= 0) & (tc < cols) & (tr >= 0) & (tr < rows)
+    if not ok.any():
+        return source
+    target = (tr[ok] * cols + tc[ok]).astype(np.intp)
+    count = np.bincount(target, minlength=rows * cols)
+    # The most likely cell landing on each target: the moved cells numbered by rank (ties by
+    # index), each pixel carrying its cell's number, the largest number per target.
+    flat = r * cols + c
+    ranked = np.lexsort((flat, rank[flat]))  # the moved cells, least likely first
+    number = np.empty(len(flat), np.intp)
+    number[ranked] = np.arange(len(flat))
+    top = np.full(rows * cols, -1, np.intp)
+    np.maximum.at(top, target, np.repeat(number, grid * grid)[ok])
+    best = np.where(top >= 0, flat[ranked][np.maximum(top, 0)], -1)
+    out = source.ravel().copy()
+    current = np.where(out >= 0, rank[np.maximum(out, 0)], -np.inf)
+    take = (count >= share * grid * grid) & (best >= 0)
+    take[take] = rank[best[take]] > current[take]
+    out[take] = best[take]
+    return out.reshape(rows, cols)
+
+
 def grid_gather(cells: NDArray, source: NDArray[np.intp], fill=np.nan) -> NDArray:
     """``cells`` (rows, cols, ...) rearranged by a :func:`grid_transfer` map; ``fill`` (of the
     cells' dtype) where there is no source."""

@@ -303,6 +303,15 @@ class Params:
         ``detect_flow`` given the array :meth:`MotionDetector.flow` returned). 0: off (the
         paper; ``data/params/no_second_pass.yaml``). Measured in docs/evaluation.md (*Second
         flow pass*).
+    carry_share : float
+        The result is measured on the previous frame's cells and carried to the current
+        frame's: each cell by its mean flow (its centre's landing cell takes it), and, where
+        this is above 0, every pixel of the cells above the threshold by its own flow. A cell
+        of the current frame that such pixels cover by at least this share of its area takes
+        the most likely cell among them (:func:`fisheyemotion.flow.pixel_transfer`). An object
+        two or three cells wide that moves across its background otherwise lands partly beside
+        itself. 0: cells only (the paper's pipeline; ``data/params/no_pixel_carry.yaml``).
+        Measured in docs/evaluation.md (*Carried by each pixel's flow*).
     saturation : float
         Likelihood mapped to full colour when drawing (paper: 0.02).
     """
@@ -365,6 +374,7 @@ class Params:
     region_gap: int = 1
     antiparallel_seeds: int = 1
     second_pass: int = 2
+    carry_share: float = 0.6
     saturation: float = 0.02
 
     def __post_init__(self) -> None:
@@ -401,6 +411,9 @@ class Params:
             if getattr(self, name) not in options:
                 raise ValueError(f"{name}: expected one of {', '.join(options)}, got "
                                  f"{_short(getattr(self, name))}")
+        if not _finite(self.carry_share) or not 0 <= self.carry_share <= 1:
+            raise ValueError("carry_share: expected a number in [0, 1], got "
+                             f"{_short(self.carry_share)}")
         if not _finite(self.temporal_decay) or not 0 <= self.temporal_decay < 1:
             raise ValueError("temporal_decay: expected a number in [0, 1), got "
                              f"{_short(self.temporal_decay)}")
@@ -435,7 +448,7 @@ class Params:
         return cls(**{"flow_prior": "none", "scene_prior": False, "scene_bootstrap": False,
                       "ground_contact": False,
                       "significance": 0.0, "epipolar_significance": 0.0, "grow": 0,
-                      "extent_reach": 0.0, "region_gap": 0, "second_pass": 0,
+                      "extent_reach": 0.0, "region_gap": 0, "second_pass": 0, "carry_share": 0.0,
                       "photometric_check": False,
                       "fb_check": False,
                       "frame_gap": 1, "min_texture": 0.0,

@@ -2,10 +2,13 @@
 
 Two views cannot tell a static point from a point that moves along its epipolar arc: a
 pedestrian crossing away from the focus of expansion, or an oncoming car, is seen exactly as a
-static point nearer the camera would be (``docs/geometry.md``). A third view can: a static point
-triangulates to the *same world point* from every pair, a moving one to a different one each
-time (the fictitious static point ``C + k (X - C)`` of a point moving along its arc follows the
-camera ``C`` by ``1 - k`` of its step).
+static point nearer the camera would be (``docs/geometry.md``). A third view can, in part: a
+static point triangulates to the *same world point* from every pair, a point moving across the
+direction of travel (a pedestrian crossing) or changing its speed to a different one each time.
+A point moving parallel to the travel at a constant speed (an oncoming or preceding vehicle)
+does not: its fictitious static point ``C + k (X - C)`` is the same from every pair
+(``(1 - k) Delta + k delta = 0``: ``docs/geometry.md``, *Three views*); the ground-contact test
+(:mod:`fisheyemotion.ground_contact`) is what tells such a vehicle from a static object.
 
 :class:`RangeMemory` keeps, for the current frame of a pair, where each of the pair's static
 cells landed (its flow's end) with its triangulated world point and relative range error.

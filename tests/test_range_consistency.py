@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from fisheyemotion.range_consistency import RangeMemory
+from fisheyemotion.static_scene import triangulate_range, world_points
 
 from .scenes import camera_pose, moved, rays_of
 
@@ -114,3 +117,47 @@ def test_the_documented_params_file_turns_it_on_and_bad_values_are_refused():
     assert fm.Params().range_consistency == 0.0 == fm.Params.paper().range_consistency
     with pytest.raises(ValueError, match="range_consistency"):
         fm.Params(range_consistency=-1.0)
+
+
+@given(st.integers(0, 2**31 - 1), st.floats(-0.8, 3.0), st.floats(0.5, 2.0))
+@settings(max_examples=60, deadline=None)
+def test_a_point_moving_along_the_travel_at_constant_speed_reads_as_one_static_point(
+        seed, speed_ratio, lateral):
+    """What three views can and cannot tell (docs/geometry.md, *Three views*): an object moving
+    parallel to the camera's travel at a constant speed (oncoming, ``speed_ratio > 0`` of the
+    camera's speed; preceding, ``< 0``) triangulates, as static, to the *same* world point
+    ``C + k (X - C)`` from every pair, ``k = 1 / (1 + speed_ratio)``: ``(1 - k) Δ + k δ = 0``.
+    Only a motion with a component across the travel (or a change of speed) moves it."""
+    rng = np.random.default_rng(seed)
+    travel = rng.normal(size=3)
+    travel /= np.linalg.norm(travel)
+    step = 0.4 * travel  # the camera's step between frames
+    start = rng.normal(size=3) * 2.0
+    side = np.cross(travel, rng.normal(size=3))
+    side /= np.linalg.norm(side)
+    point = start + 12.0 * travel + lateral * 3.0 * side  # ahead and beside the travel
+
+    def camera(t):
+        rotation, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        pose = np.eye(4)
+        pose[:3, :3] = rotation * np.sign(np.linalg.det(rotation))
+        pose[:3, 3] = start + t * step
+        return pose
+
+    def fictitious(velocity, t0, t1):
+        poses = [camera(t) for t in (t0, t1)]
+        seen = [point + t * velocity for t in (t0, t1)]
+        rays = [rays_of(x[None], pose)[0] for x, pose in zip(seen, poses, strict=True)]
+        lam, ok = triangulate_range(rays[0], rays[1], poses[0], poses[1], far=1e9)
+        assert ok
+        return world_points(rays[0], lam, poses[0])
+
+    along = -speed_ratio * step  # towards the camera when speed_ratio > 0
+    first, second = fictitious(along, 0, 3), fictitious(along, 2, 5)
+    np.testing.assert_allclose(second, first, atol=1e-7 * np.linalg.norm(point - start))
+    k = 1.0 / (1.0 + speed_ratio)
+    np.testing.assert_allclose(first, start + k * (point - start), atol=1e-7 * 12)
+    # A crossing component of a tenth of the camera's speed moves the fictitious point.
+    across = along + 0.1 * np.linalg.norm(step) * np.cross(travel, side)
+    moved_by = np.linalg.norm(fictitious(across, 2, 5) - fictitious(across, 0, 3))
+    assert moved_by > 1e-3

@@ -126,7 +126,7 @@ def test_stream_refining_its_poses_equals_apply(frames):
         items.append((f.image, pose))
     params = PARAMS.replace(pose_refinement="on")
     expected = _applied(fm.MotionDetector(CAM, params=params), items)
-    assert sum(r is not None and r.mask.any() for r, _ in expected) >= 3
+    assert sum(r is not None and r.mask.any() for r, _ in expected) >= 2  # not a vacuous match
     _assert_same(expected, _streamed(fm.MotionDetector(CAM, params=params), items))
 
 
