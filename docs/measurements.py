@@ -18,8 +18,8 @@ first pair's prior is with and without the scene-model bootstrap, the share of p
 false region by the frame they end at, the streets' Table 2 with the ground-contact test
 given the true ranges, where a moving object's coverage is lost step by step, the crossing
 pedestrians' cells flagged by their elevation from the plane through the epipole, how far
-the flow departs from the prior it was warped by, and the photometric search's reach over five
-runs.
+the flow departs from the prior it was warped by, and the photometric search's reach and the
+share a carried cell needs (``Params.carry_share``) over five runs.
 
     .venv/bin/python docs/measurements.py true_depth_prior_bounds   # one of them, by name
 """
@@ -1157,22 +1157,30 @@ def flow_follows_prior(name: str = "street_kb", frame: int = 30) -> None:
         print(f"  {offset:2d} px: " + " / ".join(f"{e:.2f}" for e in errors) + " px")
 
 
-def photometric_search_draws(reaches=(4.0, 16.0), draws: int = 4) -> None:
-    """``Params(photometric_search=r)`` for each reach over every demo sequence (Farneback),
-    with the true poses and ``draws`` negligible perturbations (:func:`_negligible`): the
-    false-positive frames per scene group (mean and SD of the runs), crossing detection over
-    all scenes and the held-out streets' approaching detection (means)."""
-    from fisheyemotion.eval.evaluate import combine, evaluate, sequence_paths
-    from fisheyemotion.eval.metrics import table2
+def _draw_groups(params: fm.Params, draws: int) -> tuple[list, list]:
+    """Every demo sequence evaluated under ``params`` (Farneback), with the true poses and
+    ``draws`` negligible perturbations (:func:`_negligible`): the runs' results and their
+    scene-group tables (``groups_table``, indexed by scene group), one a run."""
+    from fisheyemotion.eval.evaluate import evaluate, sequence_paths
     from fisheyemotion.eval.report import groups_table
 
     paths = sequence_paths([SEQUENCES])
+    runs = [evaluate(paths, params, ablation=False, progress=False)]
+    runs += [evaluate(paths, params, ablation=False, progress=False, poses="perturbed",
+                      noise=_negligible(seed)) for seed in range(draws)]
+    return runs, [groups_table(r).set_index("scenes") for r in runs]
+
+
+def photometric_search_draws(reaches=(4.0, 16.0), draws: int = 4) -> None:
+    """``Params(photometric_search=r)`` for each reach over every demo sequence (Farneback),
+    with the true poses and ``draws`` negligible perturbations (:func:`_draw_groups`): the
+    false-positive frames per scene group (mean and SD of the runs), crossing detection over
+    all scenes and the held-out streets' approaching detection (means)."""
+    from fisheyemotion.eval.evaluate import combine
+    from fisheyemotion.eval.metrics import table2
+
     for reach in reaches:
-        params = fm.Params(photometric_search=reach)
-        runs = [evaluate(paths, params, ablation=False, progress=False)]
-        runs += [evaluate(paths, params, ablation=False, progress=False, poses="perturbed",
-                          noise=_negligible(seed)) for seed in range(draws)]
-        groups = [groups_table(r).set_index("scenes") for r in runs]
+        runs, groups = _draw_groups(fm.Params(photometric_search=reach), draws)
         cells = []
         for scenes in groups[0].index:
             fp = np.array([100 * g.loc[scenes, "FP frames"] for g in groups])
@@ -1182,9 +1190,32 @@ def photometric_search_draws(reaches=(4.0, 16.0), draws: int = 4) -> None:
                             for r in runs])
         approaching = np.mean([100 * g.loc["street, held out", "approaching det."]
                                for g in groups])
-        print(f"photometric_search {reach:g} px, {len(runs)} runs: false-positive frames "
+        print(f"photometric_search {reach:g} px, {len(groups)} runs: false-positive frames "
               + ", ".join(cells) + f"; crossing detection (all) {crossing:.1f} %, held-out "
               f"approaching {approaching:.1f} %")
+
+
+def carry_share_draws(shares=(0.0, 0.4, 0.5, 0.6), draws: int = 4) -> None:
+    """``Params(carry_share=s)`` for each share over every demo sequence (Farneback), with the
+    true poses and ``draws`` negligible perturbations (:func:`_draw_groups`): each scene
+    group's detection and coverage per category, false-positive frames, static pixels flagged
+    and IoU, the runs' means (per cent), and the false-positive frames' SD."""
+    import pandas as pd
+
+    columns = ["crossing det.", "crossing cov.", "preceding det.", "preceding cov.",
+               "approaching det.", "approaching cov.", "overtaking cov.", "static cov.",
+               "FP frames", "static flagged", "IoU"]
+    with pd.option_context("display.width", 250, "display.max_columns", 40):
+        for share in shares:
+            _, groups = _draw_groups(fm.Params(carry_share=share), draws)
+            numbers = [g[[c for c in columns if c in g]].astype(float) for g in groups]
+            mean = sum(numbers) / len(numbers)
+            sd = np.sqrt(sum((n - mean) ** 2 for n in numbers) / (len(numbers) - 1))
+            print(f"carry_share {share:g}, {len(groups)} runs (means, per cent):")
+            print((100 * mean).round(1).to_string())
+            print("false-positive frames SD: "
+                  + ", ".join(f"{s} {100 * v:.1f}" for s, v in sd["FP frames"].items()))
+
 
 if __name__ == "__main__":
     if not SEQUENCES.is_dir():
@@ -1214,3 +1245,4 @@ if __name__ == "__main__":
     crossing_cells_by_elevation()
     flow_follows_prior()
     photometric_search_draws()
+    carry_share_draws()
