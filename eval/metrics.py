@@ -11,7 +11,9 @@ Definitions
   detected. **coverage rate**: the mean coverage over the detected object-frames.
 - **false-positive frame**: a frame with a predicted region (8-connected component of the mask)
   that touches no moving object. **static flagged**: the fraction of valid static pixels
-  predicted moving. The paper reports 13 % and 2 %.
+  predicted moving. The paper reports 13 % and 2 %. Those pixels lie either in false regions
+  (``fp_px_alone``) or around a detected object, in a region that touches it (the rest of
+  ``fp_px``): a false alarm, or an object's mask reaching beyond it.
 - Pixel **IoU**, **precision**, **recall** of the moving class (WoodScape's convention).
 """
 
@@ -70,14 +72,16 @@ def frame_metrics(pred: NDArray, moving_gt: NDArray, valid: NDArray) -> dict:
     labels = label(p, connectivity=2)
     n_regions = int(labels.max())
     touching = np.unique(labels[p & g])
-    fp_regions = n_regions - int((touching > 0).sum())
+    touching = touching[touching > 0]
+    fp_regions = n_regions - len(touching)
     tp, fp, fn = int((p & g).sum()), int((p & ~g).sum()), int((~p & g).sum())
+    alone = int((p & ~np.isin(labels, touching)).sum())  # static: no region there touches g
     return {
         "regions": n_regions,
         "fp_regions": fp_regions,
         "fp_frame": fp_regions > 0,
         "static_flagged": fp / max(int(static.sum()), 1),
-        "tp_px": tp, "fp_px": fp, "fn_px": fn,
+        "tp_px": tp, "fp_px": fp, "fn_px": fn, "fp_px_alone": alone,
         "iou": tp / (tp + fp + fn) if tp + fp + fn else np.nan,
         "precision": tp / (tp + fp) if tp + fp else np.nan,
         "recall": tp / (tp + fn) if tp + fn else np.nan,

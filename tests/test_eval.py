@@ -71,8 +71,11 @@ def test_false_positive_frame_and_pixel_scores():
     assert m["tp_px"] == 16 and m["fp_px"] == 8 and m["fn_px"] == 56
     assert m["iou"] == pytest.approx(16 / 80) and m["precision"] == pytest.approx(16 / 24)
     assert m["static_flagged"] == pytest.approx(8 / (600 - 72))
+    assert m["fp_px_alone"] == 0  # its 8 static pixels lie around the object it touches
     pred[8, 0] = 255  # a region touching no moving object
-    assert frame_metrics(pred, moving, valid)["fp_frame"]
+    m = frame_metrics(pred, moving, valid)
+    assert m["fp_frame"] and m["fp_regions"] == 1
+    assert m["fp_px"] == 9 and m["fp_px_alone"] == 1
 
 
 def test_edge_cases_empty_and_invalid():
