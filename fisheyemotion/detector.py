@@ -988,8 +988,8 @@ class MotionDetector:
         if p.carry_share > 0:
             # ... and the flagged cells' pixels by their own flow: an object a few cells wide
             # moving across its background is not carried partly beside itself.
-            with np.errstate(invalid="ignore"):
-                flagged = valid & (measured > p.threshold)
+            with np.errstate(invalid="ignore"):  # NaN where not valid: never flagged
+                flagged = measured > p.threshold
             source = pixel_transfer(source, flow, measured, flagged, p.grid, share=p.carry_share)
         valid_now = grid_gather(valid, source, False)
 
