@@ -1102,7 +1102,7 @@ def flow_follows_prior(name: str = "street_kb", frame: int = 30) -> None:
     one before)."""
     from fisheyemotion.eval.evaluate import world_transform
 
-    from fisheyemotion.flow import warp_by
+    from fisheyemotion.flow import FlowEstimator, warp_by
 
     seq = Sequence(SEQUENCES / name)
     renderer = Renderer(seq.camera, load_scenario(seq.path / "scenario.yaml"), supersample=1)
@@ -1137,12 +1137,7 @@ def flow_follows_prior(name: str = "street_kb", frame: int = 30) -> None:
               f"{np.mean(flow_error[band] < 2):.0%}, moved off the prior {np.median(moved[band]):.2f}"
               " px (median)")
     right = static & (prior_error < 1)
-    fb = p.farneback
-
-    def farneback(a, b):
-        return cv2.calcOpticalFlowFarneback(a, b, None, fb["pyr_scale"], fb["levels"],
-                                            fb["winsize"], fb["iterations"], fb["poly_n"],
-                                            fb["poly_sigma"], 0)
+    farneback = FlowEstimator(p)  # the detector's flow method, without a prior
 
     print("  the prior plus a uniform offset, where it was within 1 px: median error after "
           "1 / 2 / 3 passes")
