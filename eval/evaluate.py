@@ -53,6 +53,7 @@ ADDITIONS = {
     "+ regions closed over small gaps": {"region_gap": 1},
     "+ second flow pass": {"second_pass": 2},
     "+ pixels carried by their own flow": {"carry_share": 0.6},
+    "+ receding regions": {"receding": 2.0},
 }
 
 #: Ablation: weights (mu_e, mu_d, mu_h, mu_p) of each variant; "paper" is the configured Params.

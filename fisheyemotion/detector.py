@@ -60,6 +60,7 @@ from .photometric import (
 )
 from .prior import EgoFlowPrior, lands_on, static_scene_targets
 from .range_consistency import RangeMemory
+from .receding import receding_cells
 from .refinement import PoseRefiner
 from .road import Road
 from .second_pass import SIZE_STEP, BoxFlows, better_explained, near_cells, second_flow
@@ -104,7 +105,7 @@ class _Measured(NamedTuple):
     stream: bool
     check_curr: bool  # ``curr`` is the stream's newest frame: check its texture for later
     informed: bool  # the static prediction read the scene model's points (the growth's residual)
-    standing: NDArray[np.bool_] | None  # cells the ground-contact test explained
+    decided: NDArray[np.bool_] | None  # cells a region test explained (ground contact) or raised
     own_flow: bool  # the flow is the detector's own (its flow method may measure again)
 
 
@@ -570,7 +571,7 @@ class MotionDetector:
         if p.min_texture > 0 and gray is not None:
             valid &= self._textured_cells(gray)
         static_flow = None  # before the scene model learns from this pair (the prior uses it)
-        standing = None
+        decided = None
         # The pair's static prediction read the stream's scene model, not only the road and the
         # far field (before the model learns from this pair).
         informed = stream and self.scene is not None and len(self.scene) > 0
@@ -581,13 +582,14 @@ class MotionDetector:
         significant = _counts_sigmas(p)
         keep_scene = stream and self.scene is not None
         contact = p.ground_contact and self.road.known
-        if (significant or contact or keep_scene) and not res.static_camera:
+        recede = p.receding > 0 and self.road.known
+        if (significant or contact or keep_scene or recede) and not res.static_camera:
             # One triangulation for all: its parallax for the poses' error, every range for the
             # contact test, however little parallax it has; the scene model and the three views
             # use well-conditioned ones only.
             ranges, _, parallax = triangulate_range(self._rays0, rays1, t0, t1,
                                                     far=p.prior_distance, with_parallax=True)
-        if (significant or contact) and not res.static_camera:
+        if (significant or contact or recede) and not res.static_camera:
             sigma = cell_sigma(flow, p.grid, self._cell_pixel_angle(), floor=p.flow_sigma,
                                mean=cell_flow)
             pose = pose_sigma(self._rays0, parallax, t0, t1, p.position_sigma)
@@ -598,7 +600,7 @@ class MotionDetector:
             likelihood = self._with_significance(res, sigma, likelihood)
         three = (p.range_consistency > 0 and stream and gray is not None and curr is not None
                  and sigma is not None)
-        if (keep_scene or contact or three) and not res.static_camera:
+        if (keep_scene or contact or three or recede) and not res.static_camera:
             with np.errstate(invalid="ignore", divide="ignore"):
                 range_error = sigma / parallax if sigma is not None else None  # d(lambda)/lambda
                 conditioned = parallax >= np.sin(TRIANGULATION_PARALLAX)
@@ -607,7 +609,13 @@ class MotionDetector:
                 likelihood, doubted = self._explain_standing(res, likelihood, valid, ranges,
                                                              range_error, sigma, t0)
                 with np.errstate(invalid="ignore"):
-                    standing = likelihood < before
+                    decided = likelihood < before
+            if recede:
+                before = likelihood
+                likelihood = self._receding(likelihood, valid, ranges, range_error, t0)
+                with np.errstate(invalid="ignore"):
+                    raised = likelihood > before
+                decided = raised if decided is None else decided | raised
             if three:
                 likelihood = self._three_views(likelihood, valid & conditioned, ranges,
                                                range_error, cell_flow, gray, curr, t0, t1)
@@ -625,7 +633,7 @@ class MotionDetector:
                          sigma, static_flow, self.road,
                          self._prior_road(t0, t1) if p.grow > 0 else None, stream,
                          p.min_texture > 0 and curr is not None and bool(self._history)
-                         and self._history[-1][0] is curr, informed, standing, own_flow)
+                         and self._history[-1][0] is curr, informed, decided, own_flow)
 
     def _decide(self, m: _Measured) -> Detection:
         """A measured pair's result: the photometric check's seeds, the growth and the
@@ -674,7 +682,8 @@ class MotionDetector:
         """The pair's likelihood where a second flow pass (:mod:`fisheyemotion.second_pass`)
         explains the frames better: on the groups of cells within ``params.second_pass`` cells
         of those above the threshold that hold a seed (``seeds``, None: all), not on the cells
-        the ground-contact test explained."""
+        a region test decided (the ground-contact test explained them, the receding test
+        raised them: their evidence is the region's, not the cell's flow)."""
         p = self.params
         with np.errstate(invalid="ignore"):
             above = m.valid & (m.likelihood > p.threshold)
@@ -683,8 +692,8 @@ class MotionDetector:
         near = near_cells(above, p.second_pass) & m.valid
         if seeds is not None:  # only around what can be reported: regions need a seed
             near = grown_from(seeds & near, near)
-        if m.standing is not None:
-            near &= ~m.standing
+        if m.decided is not None:
+            near &= ~m.decided
         if self._second_flow is None:  # its own estimators: stream() runs the next flow meanwhile
             self._second_flow = BoxFlows(lambda: FlowEstimator(p))
         flow = second_flow(m.gray, m.curr, m.flow, near, p.grid, self._second_flow,
@@ -911,6 +920,22 @@ class MotionDetector:
                 rest = self._with_significance(res, sigma, rest)
                 explained = np.where(on_arc, rest, explained)
         return explained, doubted
+
+    def _receding(self, likelihood, valid, ranges, range_error, pose0) -> NDArray[np.float64]:
+        """The likelihood raised on the regions whose base reads beyond the road it stands on
+        (:mod:`fisheyemotion.receding`): regions of the cells above
+        ``params.receding_candidates`` times the threshold, in the columns where the base is
+        ``params.receding`` range-error sigmas or more beyond the road."""
+        p = self.params
+        with np.errstate(invalid="ignore"):
+            candidates = valid & (likelihood > p.receding_candidates * p.threshold)
+        if not candidates.any():
+            return likelihood
+        z = receding_cells(candidates, np.where(valid, ranges, np.nan), range_error,
+                           self._rays0, pose0, self.road)
+        with np.errstate(invalid="ignore"):
+            raised = np.where(z >= p.receding, p.threshold * z / p.receding, np.nan)
+        return np.fmax(likelihood, raised)
 
     def _three_views(self, likelihood, usable, ranges, range_error, cell_flow, prev, curr,
                      t0, t1) -> NDArray[np.float64]:

@@ -298,8 +298,8 @@ class Params:
         seed (:mod:`fisheyemotion.second_pass`): it measures a residual short, so an object's
         motion is measured in full only by a second pass. A cell takes the second pass's
         likelihood (higher or lower) where the new flow explains the frames better by
-        ``second_pass.BETTER_BY`` grey levels; cells the ground-contact test explained keep
-        theirs. Only for the detector's own flow (``apply``, ``detect``, ``stream``, or
+        ``second_pass.BETTER_BY`` grey levels; cells a region test decided (the ground-contact
+        test explained them, :attr:`receding` raised them) keep theirs. Only for the detector's own flow (``apply``, ``detect``, ``stream``, or
         ``detect_flow`` given the array :meth:`MotionDetector.flow` returned). 0: off (the
         paper; ``data/params/no_second_pass.yaml``). Measured in docs/evaluation.md (*Second
         flow pass*).
@@ -312,6 +312,16 @@ class Params:
         two or three cells wide that moves across its background otherwise lands partly beside
         itself. 0: cells only (the paper's pipeline; ``data/params/no_pixel_carry.yaml``).
         Measured in docs/evaluation.md (*Carried by each pixel's flow*).
+    receding : float
+        Range-error sigmas. A region (the connected cells above ``receding_candidates`` times
+        the threshold that do not read the road plane) whose lowest cells, where the road is
+        seen directly below them, read beyond the road by this many of their relative range
+        errors moves away along its epipolar arc: a static point is never under the road
+        (:mod:`fisheyemotion.receding`). Its cells in those columns are raised to
+        ``threshold * z / receding``. Needs a known road. 0: off (the paper;
+        ``data/params/no_receding.yaml``). Measured in docs/evaluation.md (*Receding regions*).
+    receding_candidates : float
+        Share of the threshold above which cells form the regions :attr:`receding` tests.
     saturation : float
         Likelihood mapped to full colour when drawing (paper: 0.02).
     """
@@ -375,6 +385,8 @@ class Params:
     antiparallel_seeds: int = 1
     second_pass: int = 2
     carry_share: float = 0.6
+    receding: float = 2.0
+    receding_candidates: float = 0.25
     saturation: float = 0.02
 
     def __post_init__(self) -> None:
@@ -394,7 +406,7 @@ class Params:
                      "extent_reach", "extent_static",
                      "photometric_margin", "photometric_tolerance", "photometric_search",
                      "significance", "epipolar_significance", "flow_sigma", "position_sigma",
-                     "refine_tolerance"):
+                     "refine_tolerance", "receding", "receding_candidates"):
             v = getattr(self, name)
             if not _finite(v) or v < 0:
                 raise ValueError(f"{name}: expected a finite number >= 0, got {_short(v)}")
@@ -449,6 +461,7 @@ class Params:
                       "ground_contact": False,
                       "significance": 0.0, "epipolar_significance": 0.0, "grow": 0,
                       "extent_reach": 0.0, "region_gap": 0, "second_pass": 0, "carry_share": 0.0,
+                      "receding": 0.0,
                       "photometric_check": False,
                       "fb_check": False,
                       "frame_gap": 1, "min_texture": 0.0,

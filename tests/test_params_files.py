@@ -29,6 +29,8 @@ CASES = {
                            "region_gap: expected an integer >= 0"),
     "no_second_pass.yaml": ("second_pass", 0, 2, 0, (-1, 2.0, False),
                             "second_pass: expected an integer >= 0"),
+    "no_receding.yaml": ("receding", 0.0, 2.0, 0.0, (-1.0, float("nan"), "a"),
+                         "receding: expected a finite number"),
     "no_pixel_carry.yaml": ("carry_share", 0.0, 0.6, 0.0, (-0.1, 1.5, float("nan"), "a"),
                             "carry_share: expected a number in"),
 }

@@ -530,7 +530,7 @@ def test_extension_covers_more_of_a_detected_object_and_keeps_what_was_found():
     f0, f3 = renderer.render(0), renderer.render(3)
     flow = np.nan_to_num(renderer.flow(3, gap=3))
     masks = {t: fm.MotionDetector(cam, params=fm.Params(extend_threshold=t, region_gap=0,
-                                                        carry_share=0.0),
+                                                        carry_share=0.0, receding=0.0),
                                   roi=renderer.roi())
              .detect_flow(flow, f0.pose, f3.pose).mask > 0 for t in (0.0, 0.002)}
     obj = f3.moving > 0
