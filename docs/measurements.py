@@ -19,7 +19,8 @@ false region by the frame they end at, the streets' Table 2 with the ground-cont
 given the true ranges, where a moving object's coverage is lost step by step, the crossing
 pedestrians' cells flagged by their elevation from the plane through the epipole, how far
 the flow departs from the prior it was warped by, and the photometric search's reach and the
-share a carried cell needs (``Params.carry_share``) over five runs.
+share a carried cell needs (``Params.carry_share``) and the receding test (``Params.receding``)
+over five runs, and how far beyond the road the exact flow reads each moving object's base.
 
     .venv/bin/python docs/measurements.py true_depth_prior_bounds   # one of them, by name
 """
@@ -1152,6 +1153,50 @@ def flow_follows_prior(name: str = "street_kb", frame: int = 30) -> None:
         print(f"  {offset:2d} px: " + " / ".join(f"{e:.2f}" for e in errors) + " px")
 
 
+def base_ratios(names=("crossing", "preceding", "approaching", "street_kb", "street_ds",
+                        "street_heldout_kb", "street_heldout_ds")) -> None:
+    """How far beyond the road the exact flow reads each moving object's base
+    (``fisheyemotion.receding``): per object-frame (pair ``k - 3 -> k``, on frame ``k - 3``'s
+    pixels, objects of at least 50 px), the median static range of the lowest quarter of its
+    pixels over the road plane's range at its base (the pixel 2 below each of its columns'
+    lowest pixel, the median over columns); per category, the object-frames' minimum, median
+    and maximum. Above 1: the base reads under the road (receding); below: it floats."""
+    import pandas as pd
+
+    from fisheyemotion.receding import road_ranges
+    from fisheyemotion.static_scene import triangulate_range
+
+    rows = []
+    for name in names:
+        seq = Sequence(SEQUENCES / name)
+        renderer = Renderer(seq.camera, load_scenario(seq.path / "scenario.yaml"), supersample=1)
+        h, w = seq.mask(0).shape
+        vv, uu = np.mgrid[0:h, 0:w]
+        pixels = np.stack([uu, vv], axis=-1).astype(np.float64)
+        rays0, _ = seq.camera.unproject(pixels)
+        objects = seq.objects[seq.objects.category.isin(["crossing", "preceding", "approaching"])]
+        for k in range(3, len(seq)):
+            rays1, _ = seq.camera.unproject(pixels + renderer.flow(k, gap=3))
+            pose0 = seq.poses[k - 3]
+            ranges = triangulate_range(rays0, rays1, pose0, seq.poses[k], far=1000.0)[0]
+            ids = seq.ids(k - 3)
+            for obj in objects[objects.frame == k - 3].itertuples():
+                v, u = np.nonzero(ids == obj.id)
+                if len(v) < 50:
+                    continue
+                lowest = np.full(w, -1)
+                np.maximum.at(lowest, u, v)
+                cols = np.flatnonzero(lowest >= 0)
+                below = np.minimum(lowest[cols] + 2, h - 1)
+                base_rays = rays0[below, cols]
+                rho = np.nanmedian(road_ranges(base_rays, pose0, fm.Road()))
+                quarter = v >= np.percentile(v, 75)
+                lam = np.nanmedian(ranges[v[quarter], u[quarter]])
+                rows.append({"sequence": name, "category": obj.category, "ratio": lam / rho})
+    table = pd.DataFrame(rows).groupby(["sequence", "category"]).ratio
+    print(table.describe()[["count", "min", "50%", "max"]].round(2).to_string())
+
+
 def _draw_groups(params: fm.Params, draws: int) -> tuple[list, list]:
     """Every demo sequence evaluated under ``params`` (Farneback), with the true poses and
     ``draws`` negligible perturbations (:func:`_negligible`): the runs' results and their
@@ -1190,26 +1235,36 @@ def photometric_search_draws(reaches=(4.0, 16.0), draws: int = 4) -> None:
               f"approaching {approaching:.1f} %")
 
 
-def carry_share_draws(shares=(0.0, 0.4, 0.5, 0.6), draws: int = 4) -> None:
-    """``Params(carry_share=s)`` for each share over every demo sequence (Farneback), with the
-    true poses and ``draws`` negligible perturbations (:func:`_draw_groups`): each scene
-    group's detection and coverage per category, false-positive frames, static pixels flagged
-    and IoU, the runs' means (per cent), and the false-positive frames' SD."""
+def _setting_draws(name: str, values, draws: int) -> None:
+    """``Params(name=v)`` for each value over every demo sequence (Farneback), with the true
+    poses and ``draws`` negligible perturbations (:func:`_draw_groups`): each scene group's
+    detection and coverage per category, false-positive frames, static pixels flagged and IoU,
+    the runs' means (per cent), and the false-positive frames' SD."""
     import pandas as pd
 
     columns = ["crossing det.", "crossing cov.", "preceding det.", "preceding cov.",
                "approaching det.", "approaching cov.", "overtaking cov.", "static cov.",
                "FP frames", "static flagged", "IoU"]
     with pd.option_context("display.width", 250, "display.max_columns", 40):
-        for share in shares:
-            _, groups = _draw_groups(fm.Params(carry_share=share), draws)
+        for value in values:
+            _, groups = _draw_groups(fm.Params(**{name: value}), draws)
             numbers = [g[[c for c in columns if c in g]].astype(float) for g in groups]
             mean = sum(numbers) / len(numbers)
             sd = np.sqrt(sum((n - mean) ** 2 for n in numbers) / (len(numbers) - 1))
-            print(f"carry_share {share:g}, {len(groups)} runs (means, per cent):")
+            print(f"{name} {value:g}, {len(groups)} runs (means, per cent):")
             print((100 * mean).round(1).to_string())
             print("false-positive frames SD: "
                   + ", ".join(f"{s} {100 * v:.1f}" for s, v in sd["FP frames"].items()))
+
+
+def carry_share_draws(shares=(0.0, 0.4, 0.5, 0.6), draws: int = 4) -> None:
+    """:func:`_setting_draws` of ``Params.carry_share``."""
+    _setting_draws("carry_share", shares, draws)
+
+
+def receding_draws(values=(0.0, 2.0), draws: int = 4) -> None:
+    """:func:`_setting_draws` of ``Params.receding`` (0: off)."""
+    _setting_draws("receding", values, draws)
 
 
 if __name__ == "__main__":

@@ -17,7 +17,8 @@ its range would, towards the epipole along its arc: it reads farther than it is,
 ``b / (b - delta)``, and its lowest part, which stands on the road, reads under the road. So does
 any motion with a component towards the epipole along the arc, such as a pedestrian walking
 towards the camera's path. With the exact flow, the bundled scenes' preceding cars read
-1.7-3.9 times the road's range at their base, their crossing pedestrians 1.1-2.6 times.
+1.7-4.0 times the road's range at their base, their crossing pedestrians 1.06-1.42 times (the
+medians over each scene's object-frames; ``docs/measurements.py base_ratios``).
 
 Cell by cell that is the height term, and a weak one exactly where it matters: near the epipole
 and for slow objects the angles involved are fractions of the flow's error. A region's lowest
@@ -46,10 +47,11 @@ The median over the lowest three cells assumes an upright base (vehicles, pedest
 poles). A region's cells that are road (the flow's error around an object lifts them above the
 fraction of the threshold) slope away upwards: higher cells read farther (at 200 px per radian
 and 5-px cells, the road one cell up is 1.26 times farther 7 degrees below the horizon, 1.06
-times 30 degrees below). So a column whose lowest cells read the road plane along *their own* rays (the median of
-``lambda / rho`` within ``ROAD_TOLERANCE`` of 1) is road and is not tested. Cells that read the
-road are not taken out of the regions: that also took out the bases of the pedestrians, which
-read only 1.1-1.3 times beyond it, and covered less of them (``docs/evaluation.md``).
+times 30 degrees below). So a column whose lowest cells read the road plane along *their own*
+rays (the median of ``lambda / rho`` within ``ROAD_TOLERANCE`` of 1) is road and is not tested.
+Cells that read the road are not taken out of the regions: that also took out the bases of the
+pedestrians, which read only 1.06-1.42 times beyond it, and covered less of them
+(``docs/evaluation.md``).
 
 The detector raises the likelihood of a region's cells in the columns at ``z >= Params.receding``
 to ``threshold * z / receding`` (:meth:`fisheyemotion.MotionDetector.detect_flow`): the
