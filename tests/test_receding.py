@@ -216,3 +216,24 @@ def test_with_exact_correspondences_the_car_recedes_and_static_structure_does_no
     z = receding_cells(candidates, ranges, error, rays0, f0.pose, fm.Road())
     assert np.nanmax(z[car]) >= fm.Params().receding
     assert not (z[static_objects] >= fm.Params().receding).any()
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), scale=st.floats(0.01, 100.0))
+def test_z_is_only_on_regions_and_does_not_depend_on_the_unit_of_length(seed, scale):
+    """Random regions, ranges and errors (some NaN): z is NaN outside the regions, and scaling
+    every range and the road's together (another unit of length) changes no z."""
+    rng = np.random.default_rng(seed)
+    rows, cols = rng.integers(3, 30), rng.integers(3, 40)
+    labels = np.zeros((rows, cols), np.intp)
+    for i in range(1, rng.integers(1, 5)):
+        r, c = rng.integers(0, rows), rng.integers(0, cols)
+        labels[r:r + rng.integers(1, 6), c:c + rng.integers(1, 8)] = i
+    plane = np.where(rng.random((rows, cols)) < 0.1, np.inf, rng.uniform(2, 40, (rows, cols)))
+    ranges = plane * rng.uniform(0.5, 2.0, (rows, cols))
+    ranges[rng.random((rows, cols)) < 0.1] = np.nan
+    error = rng.uniform(0.01, 0.5, (rows, cols))
+    z = receding_z(labels, ranges, error, plane)
+    assert z.shape == labels.shape and np.isnan(z[labels == 0]).all()
+    np.testing.assert_allclose(receding_z(labels, scale * ranges, error, scale * plane), z,
+                               rtol=1e-9, atol=1e-9)
