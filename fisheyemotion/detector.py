@@ -6,9 +6,9 @@ subtractors: ``apply(frame, pose)`` gives the result on ``frame``'s pixels.
 ...     result = detector.apply(frame, pose)   # None for the first frame
 
 Each frame pair is measured (flow warped by the static-scene prior, the constraints, their
-significance, the ground-contact test, the scene model's update: ``_measure``) and then decided
-(the photometric check's seeds, the growth, the transfer to the current frame, the temporal
-filter, the segmentation and the extent: ``_decide``); :meth:`MotionDetector.stream` runs the
+significance, the ground-contact and receding tests, the scene model's update: ``_measure``) and
+then decided (the photometric check's seeds, the growth, the transfer to the current frame, the
+temporal filter, the segmentation and the extent: ``_decide``); :meth:`MotionDetector.stream` runs the
 next pair's flow beside the decision.
 """
 
