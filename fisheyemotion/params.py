@@ -299,9 +299,10 @@ class Params:
         motion is measured in full only by a second pass. A cell takes the second pass's
         likelihood (higher or lower) where the new flow explains the frames better by
         ``second_pass.BETTER_BY`` grey levels; cells a region test decided (the ground-contact
-        test explained them, :attr:`receding` raised them) keep theirs. Only for the detector's own flow (``apply``, ``detect``, ``stream``, or
-        ``detect_flow`` given the array :meth:`MotionDetector.flow` returned). 0: off (the
-        paper; ``data/params/no_second_pass.yaml``). Measured in docs/evaluation.md (*Second
+        test explained them, :attr:`receding` raised them) keep theirs. Only for the detector's
+        own flow (``apply``, ``detect``, ``stream``, or ``detect_flow`` given the array
+        :meth:`MotionDetector.flow` returned). 0: off (the paper;
+        ``data/params/no_second_pass.yaml``). Measured in docs/evaluation.md (*Second
         flow pass*).
     carry_share : float
         The result is measured on the previous frame's cells and carried to the current
