@@ -12,11 +12,11 @@ which is the positive-height condition (``xi_h``, ``docs/geometry.md``) read as 
 An object that moves along the direction of travel by ``delta`` while the camera moves ``b``
 keeps its rays on their epipolar circles, and the two views triangulate it at ``b / (b - delta)``
 times its true range (scaled about the first camera centre; ``docs/geometry.md``, *Receding
-objects*). A car ahead in the same lane (``0 < delta < b``) moves less than a static point at
-its range would, towards the epipole along its arc: it reads farther than it is, by
-``b / (b - delta)``, and its lowest part, which stands on the road, reads under the road. So does
-any motion with a component towards the epipole along the arc, such as a pedestrian walking
-towards the camera's path. With the exact flow, the bundled scenes' preceding cars read
+objects*). A car ahead in the same lane (``0 < delta < b``) is seen to move less along its arc
+than a static point at its range would: it reads farther than it is, by ``b / (b - delta)``, and
+its lowest part, which stands on the road, reads under the road. So does any motion whose
+component along the arc points towards the epipole, such as a pedestrian walking towards the
+camera's path. With the exact flow, the bundled scenes' preceding cars read
 1.7-4.0 times the road's range at their base, their crossing pedestrians 1.06-1.42 times (the
 medians over each scene's object-frames; ``docs/measurements.py base_ratios``).
 
