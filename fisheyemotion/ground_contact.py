@@ -36,7 +36,8 @@ from .road import Road
 from .segment import led_regions
 from .static_scene import world_points
 
-__all__ = ["WALK_PERCENTILE", "contact_ratios", "smooth_columns", "standing_regions"]
+__all__ = ["WALK_PERCENTILE", "contact_ratios", "row_nanpercentile", "smooth_columns",
+           "standing_regions"]
 
 #: The percentile of the ranges met below an edge cell that its column's ratio is taken from
 #: (50: the median).
@@ -108,13 +109,13 @@ def contact_ratios(labels: NDArray[np.intp], ranges: NDArray[np.float64],
         samples[j - 1] = np.where(use, ranges[ri, ci], np.nan)
     # The median of what was measured below each edge (NaN where nothing): the 50th percentile
     # (linear interpolation: the mean of the middle two of an even count), as np.nanmedian.
-    ratio = _row_nanpercentile(samples.T, WALK_PERCENTILE) / lam
+    ratio = row_nanpercentile(samples.T, WALK_PERCENTILE) / lam
     has = np.isfinite(ratio)
     np.fmax.at(out, (own[has], ec[has]), ratio[has])
     return out
 
 
-def _row_nanpercentile(a: NDArray[np.float64], q: float) -> NDArray[np.float64]:
+def row_nanpercentile(a: NDArray[np.float64], q: float) -> NDArray[np.float64]:
     """``np.nanpercentile(a, q, axis=1)`` (linear interpolation) for a 2-D array, without its
     per-row Python loop: NaN sort last, so each row's finite values lead its sorted copy."""
     s = np.sort(a, axis=1)
@@ -138,7 +139,7 @@ def smooth_columns(per_column: NDArray[np.float64], columns: int) -> NDArray[np.
     padded = np.pad(per_column, ((0, 0), (columns, columns)), constant_values=np.nan)
     windows = np.lib.stride_tricks.sliding_window_view(padded, width, axis=1)
     n, cols = per_column.shape
-    out = _row_nanpercentile(windows.reshape(n * cols, width), 50.0).reshape(n, cols)
+    out = row_nanpercentile(windows.reshape(n * cols, width), 50.0).reshape(n, cols)
     return np.where(np.isfinite(per_column), out, np.nan)
 
 
@@ -171,7 +172,7 @@ def standing_regions(moving: NDArray[np.bool_], antiparallel_share: NDArray[np.f
     candidates = np.where(led[labels], labels, 0)
     per_column = smooth_columns(
         contact_ratios(candidates, ranges, rays, pose, camera, road, grid, steps=steps), columns)
-    region = _row_nanpercentile(per_column, 75.0)
+    region = row_nanpercentile(per_column, 75.0)
     decided = np.where(np.isnan(per_column), region[:, None], per_column)
     with np.errstate(invalid="ignore"):
         stands = decided < ratio

@@ -66,7 +66,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .calib.transforms import rotate
-from .ground_contact import _row_nanpercentile, smooth_columns
+from .ground_contact import row_nanpercentile, smooth_columns
 from .road import Road
 
 __all__ = ["COLUMNS", "EDGE_ROWS", "MIN_COLUMNS", "ROAD_ROWS", "ROAD_TOLERANCE", "receding_cells",
@@ -139,10 +139,10 @@ def receding_z(labels: NDArray[np.intp], ranges: NDArray[np.float64],
             mine = (er >= j) & (labels[r, ec] == own)
             samples[:, j] = np.where(mine, ranges[r, ec], np.nan)
             along[:, j] = np.where(mine, ranges[r, ec] / plane[r, ec], np.nan)
-        lam = _row_nanpercentile(samples, 50.0)
+        lam = row_nanpercentile(samples, 50.0)
         z = (lam / plane[er, ec] - 1) / range_error[er, ec]
         # Lowest cells that read the road along their own rays are road, not an upright base.
-        z[np.abs(_row_nanpercentile(along, 50.0) - 1) < ROAD_TOLERANCE] = np.nan
+        z[np.abs(row_nanpercentile(along, 50.0) - 1) < ROAD_TOLERANCE] = np.nan
     ok = np.isfinite(z)
     own, ec, z = own[ok], ec[ok], z[ok]
     per_column = np.full((n + 1, cols), np.nan)

@@ -510,7 +510,7 @@ def ndimage_dilate(mask):
 def test_row_percentile_matches_numpy(rows, cols, missing, seed):
     import warnings
 
-    from fisheyemotion.ground_contact import _row_nanpercentile
+    from fisheyemotion.ground_contact import row_nanpercentile
 
     rng = np.random.default_rng(seed)
     a = rng.normal(size=(rows, cols))
@@ -518,7 +518,7 @@ def test_row_percentile_matches_numpy(rows, cols, missing, seed):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN rows
         expected = np.nanpercentile(a, 75, axis=1)
-    np.testing.assert_allclose(_row_nanpercentile(a, 75.0), expected, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(row_nanpercentile(a, 75.0), expected, rtol=1e-12, atol=1e-12)
 
 
 # ---- extension ---------------------------------------------------------------------------
