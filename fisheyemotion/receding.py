@@ -17,7 +17,7 @@ than a static point at its range would: it reads farther than it is, by ``b / (b
 its lowest part, which stands on the road, reads under the road. So does any motion whose
 component along the arc points towards the epipole, such as a pedestrian walking towards the
 camera's path. With the exact flow, the bundled scenes' preceding cars read
-1.7-4.0 times the road's range at their base, their crossing pedestrians 1.06-1.42 times (the
+1.7-3.9 times the road's range at their base, their crossing pedestrians 1.06-1.42 times (the
 medians over each scene's object-frames; ``docs/measurements.py base_ratios``).
 
 Cell by cell that is the height term, and a weak one exactly where it matters: near the epipole
