@@ -36,8 +36,8 @@ from .road import Road
 from .segment import led_regions
 from .static_scene import world_points
 
-__all__ = ["WALK_PERCENTILE", "contact_ratios", "row_nanpercentile", "smooth_columns",
-           "standing_regions"]
+__all__ = ["WALK_PERCENTILE", "contact_ratios", "lower_edges", "row_nanpercentile",
+           "smooth_columns", "standing_regions"]
 
 #: The percentile of the ranges met below an edge cell that its column's ratio is taken from
 #: (50: the median).
@@ -73,11 +73,7 @@ def contact_ratios(labels: NDArray[np.intp], ranges: NDArray[np.float64],
     rows, cols = labels.shape
     n = int(labels.max())
     out = np.full((n + 1, cols), np.nan)
-    # A region cell whose lower neighbour is not of the region is an edge.
-    below = np.zeros_like(labels)
-    below[:-1] = labels[1:]
-    edge = (labels > 0) & (below != labels)
-    er, ec = np.nonzero(edge)
+    er, ec = lower_edges(labels)
     lam = ranges[er, ec]
     ok = np.isfinite(lam)
     er, ec, lam = er[ok], ec[ok], lam[ok]
@@ -113,6 +109,14 @@ def contact_ratios(labels: NDArray[np.intp], ranges: NDArray[np.float64],
     has = np.isfinite(ratio)
     np.fmax.at(out, (own[has], ec[has]), ratio[has])
     return out
+
+
+def lower_edges(labels: NDArray[np.intp]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Rows and columns of the cells of labelled regions (``labels`` > 0) whose lower
+    neighbour is not of their region (another region, none, or the grid's last row)."""
+    below = np.zeros_like(labels)
+    below[:-1] = labels[1:]
+    return np.nonzero((labels > 0) & (below != labels))
 
 
 def row_nanpercentile(a: NDArray[np.float64], q: float) -> NDArray[np.float64]:

@@ -66,7 +66,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .calib.transforms import rotate
-from .ground_contact import row_nanpercentile, smooth_columns
+from .ground_contact import lower_edges, row_nanpercentile, smooth_columns
 from .road import Road
 
 __all__ = ["COLUMNS", "EDGE_ROWS", "MIN_COLUMNS", "ROAD_ROWS", "ROAD_TOLERANCE", "receding_cells",
@@ -119,9 +119,7 @@ def receding_z(labels: NDArray[np.intp], ranges: NDArray[np.float64],
     out = np.full(labels.shape, np.nan)
     if n == 0:
         return out
-    below = np.zeros_like(labels)
-    below[:-1] = labels[1:]
-    er, ec = np.nonzero((labels > 0) & (below != labels))
+    er, ec = lower_edges(labels)
     keep = er < rows - ROAD_ROWS
     er, ec = er[keep], ec[keep]
     own = labels[er, ec]
