@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 
 from . import _warmup
 from .calib.base import CameraModel
-from .calib.transforms import check_rigid, rotate
+from .calib.transforms import check_rigid
 from .constraints import ConstraintResult, constraints, nearest_static_ray
 from .detection import CONSTRAINT_NAMES, Detection, Grid, LazyMaps
 from .egomotion import PoseTracker
@@ -60,7 +60,7 @@ from .photometric import (
 )
 from .prior import EgoFlowPrior, lands_on, static_scene_targets
 from .range_consistency import RangeMemory
-from .receding import receding_cells
+from .receding import receding_cells, road_ranges
 from .refinement import PoseRefiner
 from .road import Road
 from .second_pass import SIZE_STEP, BoxFlows, better_explained, near_cells, second_flow
@@ -773,7 +773,7 @@ class MotionDetector:
         with np.errstate(invalid="ignore"):
             # Cells the flow reads on the road (within ROAD_READING of its plane) are left to
             # the plane: the prior reads the model only where it holds something nearer.
-            road = self.road.ray_range(t0[:3, 3], rotate(self._rays0, t0[:3, :3]))
+            road = road_ranges(self._rays0, t0, self.road)
             cells = static & np.isfinite(ranges) & ~(np.abs(ranges / road - 1) < ROAD_READING)
             residual = cell_residual(gray, curr, flow, p.grid, cells)
             poor = cells & (residual >= p.scene_sweep)
