@@ -1197,8 +1197,76 @@ def base_ratios(names=("crossing", "preceding", "approaching", "street_kb", "str
     print(table.describe()[["count", "min", "50%", "max"]].round(2).to_string())
 
 
+def false_seed_predictions(names=("street_kb", "street_heldout_ds"),
+                           params: fm.Params | None = None) -> None:
+    """Where the photometric check's static prediction is at the seeds (cells above the
+    threshold that it does not explain) of ``params`` (default: ``Params()`` with the fixed
+    tolerance only, ``photometric_range_error=0``; Farneback, streamed with ``apply()``), by
+    the surface under each (the renderer's ids on the previous frame): how many, the median
+    error of the static prediction and of the measured flow against the exact flow (pixels),
+    the median parallax (the prediction's distance from the image of its point at infinity),
+    the quartiles of the prediction's error along the epipolar curve as a share of that
+    parallax (positive: the static point is nearer than predicted) and the median error
+    across the curve (pixels)."""
+    import pandas as pd
+
+    from fisheyemotion import detector as detector_module
+    from fisheyemotion.flow import grid_average
+
+    p = params if params is not None else fm.Params(photometric_range_error=0.0)
+    g, gap = p.grid, p.frame_gap
+    cls = detector_module.MotionDetector
+    original = cls._assemble
+    seen: dict = {}
+
+    def assemble(self, *args, seeds=None, static_flow=None, **kwargs):
+        seen.update(seeds=seeds, static_flow=static_flow)
+        return original(self, *args, seeds=seeds, static_flow=static_flow, **kwargs)
+
+    rows = []
+    try:
+        cls._assemble = assemble
+        for name in names:
+            seq = Sequence(SEQUENCES / name)
+            kinds = dict(zip(seq.objects.id.astype(int), seq.objects.kind.astype(str),
+                             strict=True))
+            renderer = Renderer(seq.camera, load_scenario(seq.path / "scenario.yaml"),
+                                supersample=1)
+            det = fm.MotionDetector(seq.camera, params=p, roi=seq.roi())
+            for k in range(len(seq)):
+                seen.clear()
+                result = det.apply(seq.frame(k), seq.poses[k])
+                if result is None or seen.get("seeds") is None:
+                    continue
+                exact = grid_average(np.nan_to_num(renderer.flow(k, gap=gap), nan=1e4), g)
+                static = grid_average(seen["static_flow"], g)
+                measured = result.grid.flow
+                t0, t1 = seq.poses[k - gap], seq.poses[k]
+                at_infinity = det._at_infinity(t0, t1)
+                ids = seq.ids(k - gap)[g // 2::g, g // 2::g]
+                for r, c in zip(*np.nonzero(seen["seeds"]), strict=True):
+                    along = det._centres[r, c] + static[r, c] - at_infinity[r, c]
+                    parallax = float(np.linalg.norm(along))
+                    error = exact[r, c] - static[r, c]
+                    rows.append({
+                        "surface": kinds.get(int(ids[r, c]), "road"), "parallax": parallax,
+                        "static": float(np.linalg.norm(error)),
+                        "flow": float(np.linalg.norm(exact[r, c] - measured[r, c])),
+                        "along": float(error @ along) / parallax ** 2,
+                        "across": abs(float(np.cross(along / parallax, error)))})
+    finally:
+        cls._assemble = original
+    table = pd.DataFrame(rows).groupby("surface").agg(
+        seeds=("static", "size"), static_px=("static", "median"), flow_px=("flow", "median"),
+        parallax_px=("parallax", "median"), along_q1=("along", lambda x: x.quantile(0.25)),
+        along_median=("along", "median"), along_q3=("along", lambda x: x.quantile(0.75)),
+        across_px=("across", "median"))
+    print(f"seeds of {', '.join(names)} ({p.flow}):")
+    print(table.round(3).to_string())
+
+
 def _draw_groups(params: fm.Params, draws: int) -> tuple[list, list]:
-    """Every demo sequence evaluated under ``params`` (Farneback), with the true poses and
+    """Every demo sequence evaluated under ``params``, with the true poses and
     ``draws`` negligible perturbations (:func:`_negligible`): the runs' results and their
     scene-group tables (``groups_table``, indexed by scene group), one a run."""
     from fisheyemotion.eval.evaluate import evaluate, sequence_paths
@@ -1235,8 +1303,8 @@ def photometric_search_draws(reaches=(4.0, 16.0), draws: int = 4) -> None:
               f"approaching {approaching:.1f} %")
 
 
-def _setting_draws(name: str, values, draws: int) -> None:
-    """``Params(name=v)`` for each value over every demo sequence (Farneback), with the true
+def _setting_draws(name: str, values, draws: int, *, flow: str = "farneback") -> None:
+    """``Params(name=v)`` for each value over every demo sequence (``flow``), with the true
     poses and ``draws`` negligible perturbations (:func:`_draw_groups`): each scene group's
     detection and coverage per category, false-positive frames, static pixels flagged and IoU,
     the runs' means (per cent), and the false-positive frames' SD."""
@@ -1247,11 +1315,11 @@ def _setting_draws(name: str, values, draws: int) -> None:
                "FP frames", "static flagged", "IoU"]
     with pd.option_context("display.width", 250, "display.max_columns", 40):
         for value in values:
-            _, groups = _draw_groups(fm.Params(**{name: value}), draws)
+            _, groups = _draw_groups(fm.Params(**{name: value}, flow=flow), draws)
             numbers = [g[[c for c in columns if c in g]].astype(float) for g in groups]
             mean = sum(numbers) / len(numbers)
             sd = np.sqrt(sum((n - mean) ** 2 for n in numbers) / (len(numbers) - 1))
-            print(f"{name} {value:g}, {len(groups)} runs (means, per cent):")
+            print(f"{name} {value:g}, {flow}, {len(groups)} runs (means, per cent):")
             print((100 * mean).round(1).to_string())
             print("false-positive frames SD: "
                   + ", ".join(f"{s} {100 * v:.1f}" for s, v in sd["FP frames"].items()))
@@ -1265,6 +1333,13 @@ def carry_share_draws(shares=(0.0, 0.4, 0.5, 0.6), draws: int = 4) -> None:
 def receding_draws(values=(0.0, 2.0), draws: int = 4) -> None:
     """:func:`_setting_draws` of ``Params.receding`` (0: off)."""
     _setting_draws("receding", values, draws)
+
+
+def range_tolerance_draws(values=(0.0, 0.03), draws: int = 4) -> None:
+    """:func:`_setting_draws` of ``Params.photometric_range_error`` (0: the fixed tolerance
+    only), with Farneback and with DIS."""
+    for flow in ("farneback", "dis"):
+        _setting_draws("photometric_range_error", values, draws, flow=flow)
 
 
 if __name__ == "__main__":

@@ -509,10 +509,20 @@ class MotionDetector:
         if p.visibility_check:
             keep = lands_on(targets, ok, self._inner_view(), *self.size)
         if parallax and p.min_parallax > 0:
-            at_infinity, _ = self.camera.project(self._rays0 @ (t0[:3, :3].T @ t1[:3, :3]))
             with np.errstate(invalid="ignore"):
-                keep &= np.linalg.norm(targets - at_infinity, axis=-1) >= p.min_parallax
+                keep &= np.linalg.norm(targets - self._at_infinity(t0, t1), axis=-1) \
+                    >= p.min_parallax
         return keep
+
+    def _at_infinity(self, t0: NDArray, t1: NDArray, cells: NDArray[np.bool_] | None = None
+                     ) -> NDArray[np.float64]:
+        """Where the cells' points at infinity are seen in the current frame: their rays turned
+        by the rotation alone (NaN outside the camera's domain), ``(rows, cols, 2)``, or
+        ``(n, 2)`` for the ``cells`` given (row-major). A static point's displacement from
+        there is its parallax."""
+        rays = self._rays0 if cells is None else self._rays0[cells]
+        at, _ = self.camera.project(rays @ (t0[:3, :3].T @ t1[:3, :3]))
+        return at
 
     def _inner_view(self) -> NDArray[np.bool_]:
         """The usable pixels shrunk by one cell (H, W): where a cell's whole block is sampled
@@ -654,11 +664,16 @@ class MotionDetector:
             def along(cells):  # the epipolar curves at the cells' predicted points
                 return epipolar_directions(self.camera, predicted(*np.nonzero(cells)), t0, t1)
 
+            def reach(cells):  # how far the prediction's range error moves it, pixels
+                parallax = np.linalg.norm(predicted(*np.nonzero(cells))
+                                          - self._at_infinity(t0, t1, cells), axis=-1)
+                return p.photometric_range_error * parallax
+
             measured = cell_residual(gray, curr, flow, p.grid, above)  # shared by both tests
-            seeds = above & ~static_explained(gray, curr, flow, static_flow, p.grid,
-                                              p.photometric_margin, cells=above,
-                                              tolerance=p.photometric_tolerance,
-                                              directions=along, measured=measured)
+            seeds = above & ~static_explained(
+                gray, curr, flow, static_flow, p.grid, p.photometric_margin, cells=above,
+                tolerance=p.photometric_tolerance, directions=along, measured=measured,
+                reach=reach if p.photometric_range_error > 0 else None)
             if p.photometric_view and seeds.any():
                 r, c = np.nonzero(seeds)
                 seeds[r, c] = testable_cells(predicted(r, c), self._inner_view(),

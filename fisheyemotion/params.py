@@ -125,6 +125,15 @@ class Params:
         along it explains it (the scene model's ranges, the road and the step length are a few
         per cent off, which moves the prediction only along that curve and, on a sharp edge,
         by tens of grey levels). 0 tests the prediction as it is.
+    photometric_range_error : float
+        Relative error of the static prediction's range (the scene model's, the road's): the
+        tolerance along the epipolar curve is at least this times the cell's parallax in pixels
+        (its static prediction's distance from the image of the point at infinity), which is
+        how far such an error moves the prediction. Structure close to the camera, measured
+        over tens of pixels of parallax, is predicted a pixel or more off where the road is
+        predicted within ``photometric_tolerance``. Used only where it reaches
+        ``photometric.MIN_REACH`` (0.8 px: a parallax of 27 px at 0.03), close structure. 0:
+        the fixed tolerance only.
     photometric_arc : bool
         A cell the static scene does not explain starts a region only if the images support
         its deviation from the epipolar arc (moved onto the arc, the measured flow explains the
@@ -354,6 +363,7 @@ class Params:
     photometric_check: bool = True
     photometric_margin: float = 10.0
     photometric_tolerance: float = 0.25
+    photometric_range_error: float = 0.03
     photometric_arc: bool = True
     photometric_view: bool = True
     photometric_search: float = 16.0
@@ -405,7 +415,8 @@ class Params:
                      "min_parallax", "seed_threshold", "extend_threshold", "contact_ratio",
                      "contact_arc", "range_consistency", "scene_sweep", "scene_sweep_margin",
                      "extent_reach", "extent_static",
-                     "photometric_margin", "photometric_tolerance", "photometric_search",
+                     "photometric_margin", "photometric_tolerance", "photometric_range_error",
+                     "photometric_search",
                      "significance", "epipolar_significance", "flow_sigma", "position_sigma",
                      "refine_tolerance", "receding", "receding_candidates"):
             v = getattr(self, name)

@@ -25,6 +25,17 @@ of a pixel -- and on a sharp edge a quarter of a pixel is tens of grey levels. W
 does not explain. A moving object is off its curve by its own motion, which a quarter of a
 pixel along the curve does not undo.
 
+A fixed tolerance fits the road and the far field, not structure close to the camera: the
+scene model's range of a parked car or a wall is a few per cent off (each pair's flow there is
+a few pixels off over tens of pixels of parallax), and a relative range error ``epsilon`` moves
+the prediction along the curve by about ``epsilon`` times the cell's parallax in pixels (its
+distance from the image of the point at infinity, ``d u / d ln(lambda)`` for a translation
+that is small against the range). With a ``reach`` (the detector's
+``Params.photometric_range_error`` times that parallax) a cell's tolerance is the larger of
+the two, sampled at moves at most ``t`` apart; only where the reach is at least
+:data:`MIN_REACH` (close structure: farther, slower-moving pedestrians walking along their
+curve were explained away by smaller reaches, measured).
+
 The images can only test a static prediction they show: where a cell's static point leaves
 the view (the previous frame's side of the image as the camera moves forward), its residual
 would compare the cell with the image's replicated border, and every such cell would look
@@ -56,6 +67,7 @@ cells are not removed from a region that has one. Only cells above the threshold
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -71,14 +83,23 @@ _STEP = 1e-4  # radians along the epipolar circle, either way, for its image dir
 #: Pixels between the static correspondences that the off-arc test compares
 #: (``Params.photometric_search``).
 SEARCH_STEP = 1.0
+#: Moves a side at most of :func:`static_explained`'s tolerance along the epipolar curve: a
+#: tolerance up to 4 times ``Params.photometric_tolerance`` is sampled at that spacing, a wider
+#: one at quarters of itself.
+TOLERANCE_STEPS = 4
+#: Pixels: a ``reach`` below this is not used by :func:`static_explained` (the fixed tolerance
+#: stands). With ``Params.photometric_range_error`` 0.03 it is a parallax of 27 px, structure
+#: within a few metres beside the camera; pedestrians 6-8 m away, with less parallax, lost
+#: detections to smaller reaches on the demo streets (docs/evaluation.md, *Range tolerance*).
+MIN_REACH = 0.8
 
 #: Ranges (metres) that :func:`sweep_ranges` tries: 24 from 40 m to 1 m, uniform in inverse
 #: range (so uniform in parallax).
 SWEEP_RANGES = 1.0 / np.linspace(1.0 / 40.0, 1.0, 24)
 
-__all__ = ["SEARCH_STEP", "SWEEP_RANGES", "arc_candidates", "best_candidate", "cell_residual",
-           "epipolar_directions", "off_arc_supported", "static_explained", "sweep_ranges",
-           "testable_cells"]
+__all__ = ["MIN_REACH", "SEARCH_STEP", "SWEEP_RANGES", "TOLERANCE_STEPS", "arc_candidates",
+           "best_candidate", "cell_residual", "epipolar_directions", "off_arc_supported",
+           "static_explained", "sweep_ranges", "testable_cells"]
 
 
 def cell_residual(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArray[np.float32],
@@ -202,13 +223,18 @@ def static_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
                      margin: float, cells: NDArray[np.bool_] | None = None,
                      tolerance: float = 0.0,
                      directions: Callable[[NDArray[np.bool_]], NDArray] | None = None,
-                     measured: NDArray[np.float32] | None = None) -> NDArray[np.bool_]:
+                     measured: NDArray[np.float32] | None = None,
+                     reach: Callable[[NDArray[np.bool_]], NDArray] | None = None
+                     ) -> NDArray[np.bool_]:
     """Cells ``(H // grid, W // grid)`` where the static scene's flow explains the frames within
-    ``margin`` grey levels of the measured flow, or the same moved by ``tolerance`` pixels
-    either way along ``directions(cells)`` (``(n, 2)`` unit image directions of the ``n``
-    cells still unexplained, row-major; NaN: no such test) does (module doc). With ``cells``
-    only those are tested (False elsewhere); without, every whole cell. ``measured``: the
-    measured flow's :func:`cell_residual` at those cells, if the caller has it.
+    ``margin`` grey levels of the measured flow, or the same moved along ``directions(cells)``
+    (``(n, 2)`` unit image directions of the ``n`` cells still unexplained, row-major; NaN: no
+    such test) by up to ``tolerance`` pixels either way does (module doc). With ``reach``
+    (``(n,)`` pixels for those cells, NaN: none; below :data:`MIN_REACH`: not used) a cell's
+    tolerance is the larger of the two, and the moves are spaced at most ``tolerance`` apart
+    (at most :data:`TOLERANCE_STEPS` a side). With ``cells`` only those are tested (False
+    elsewhere); without, every whole cell. ``measured``: the measured flow's
+    :func:`cell_residual` at those cells, if the caller has it.
     """
     if cells is None:
         cells = np.ones((prev.shape[0] // grid, prev.shape[1] // grid), bool)
@@ -219,8 +245,16 @@ def static_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
         explained = static <= measured + margin
     left = cells & ~explained
     if tolerance > 0 and directions is not None and left.any():
-        shift = np.nan_to_num(tolerance * np.asarray(directions(left), np.float64))
-        moved = _cell_residuals(prev, curr, static_flow, grid, left, (shift, -shift))
+        extent = np.full(int(left.sum()), float(tolerance))
+        if reach is not None:
+            wide = np.asarray(reach(left), np.float64)
+            with np.errstate(invalid="ignore"):
+                extent = np.where(wide >= MIN_REACH, np.fmax(extent, wide), extent)
+        steps = min(TOLERANCE_STEPS, math.ceil(float(extent.max()) / tolerance - 1e-9))
+        unit = np.nan_to_num(np.asarray(directions(left), np.float64))
+        shifts = [unit * (extent * (k / steps))[:, None] for k in range(1, steps + 1)]
+        moved = _cell_residuals(prev, curr, static_flow, grid, left,
+                                tuple(s for shift in shifts for s in (shift, -shift)))
         with np.errstate(invalid="ignore"):
             for residual in moved:
                 explained |= left & (residual <= measured + margin)

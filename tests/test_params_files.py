@@ -31,6 +31,9 @@ CASES = {
                             "second_pass: expected an integer >= 0"),
     "no_receding.yaml": ("receding", 0.0, 2.0, 0.0, (-1.0, float("nan"), "a"),
                          "receding: expected a finite number"),
+    "no_range_tolerance.yaml": ("photometric_range_error", 0.0, 0.03, None,
+                                (-0.01, float("inf"), "a"),
+                                "photometric_range_error: expected a finite number"),
     "no_pixel_carry.yaml": ("carry_share", 0.0, 0.6, 0.0, (-0.1, 1.5, float("nan"), "a"),
                             "carry_share: expected a number in"),
 }

@@ -702,6 +702,68 @@ def test_the_tolerance_explains_a_prediction_off_along_its_epipolar_curve_only()
     assert not explained["along", 0.25][~cells].any()     # untested cells stay unexplained
 
 
+def test_the_reach_widens_the_tolerance_cell_by_cell_along_the_curve_only():
+    from fisheyemotion.photometric import MIN_REACH, TOLERANCE_STEPS, static_explained
+
+    rng = np.random.default_rng(6)
+    prev = cv2.GaussianBlur(rng.integers(0, 255, (60, 80), dtype=np.uint8), (3, 3), 0.7)
+    curr = np.roll(prev, (2, 3), axis=(0, 1))
+    flow = np.zeros((60, 80, 2), np.float32)
+    flow[..., 0], flow[..., 1] = 3, 2
+    cells = np.zeros((12, 16), bool)
+    cells[2:-2, 2:-2] = True
+    near = np.zeros_like(cells)
+    near[:, :8] = True                                    # structure close to the camera
+    d = np.array([0.6, 0.8])
+    seen = {}
+
+    def reach(left):                                      # pixels, row-major over `left`
+        return np.where(near[left], 1.3, 0.5)
+
+    off = 0.75 * 1.3                                      # on one of the moves: 3/4 of the reach
+    for key, error in {"along": off * d, "across": off * np.array([-0.8, 0.6])}.items():
+        static = flow + error.astype(np.float32)          # the static scene ~1 px off
+        for with_reach in (False, True):
+            seen[key, with_reach] = static_explained(
+                prev, curr, flow, static, 5, 1.0, cells=cells, tolerance=0.25,
+                directions=lambda left: np.tile(d, (left.sum(), 1)),
+                reach=reach if with_reach else None)
+    assert not seen["along", False][cells].any()          # the fixed quarter pixel: too little
+    assert seen["along", True][cells & near].all()        # 1.3 px of reach: found
+    assert not seen["along", True][cells & ~near].any()   # 0.5 px of reach: still too little
+    assert not seen["across", True][cells].any()          # across the curve no reach helps
+    assert TOLERANCE_STEPS == 4                           # the moves were quarters of 1.3 px
+    static = flow + (0.6 * d).astype(np.float32)          # 0.6 px off along the curve
+    for wide, found in ((0.6, False), (MIN_REACH, True)):  # a small reach is not used
+        assert static_explained(prev, curr, flow, static, 5, 1.0, cells=cells, tolerance=0.25,
+                                directions=lambda left: np.tile(d, (left.sum(), 1)),
+                                reach=lambda left, w=wide: np.full(left.sum(), w)
+                                )[cells].all() == found
+
+
+def test_the_parallax_is_the_distance_from_the_point_at_infinity():
+    cam = tumvi_kb(640, 480, 200.0)
+    det = fm.MotionDetector(cam, fm.Road(), params=fm.Params())
+    rng = np.random.default_rng(8)
+    pose0 = camera_pose(rng, height=1.2, pitch_deg=5)
+    pose1 = moved(pose0, [0.0, 0.0, 0.0], yaw_deg=3.0)    # a pure rotation: no parallax
+    at = det._at_infinity(pose0, pose1)
+    r, c = np.nonzero(np.isfinite(at).all(axis=-1))
+    rays = det._rays0[r, c]
+    points = pose0[:3, 3] + 7.0 * (rays @ pose0[:3, :3].T)
+    seen, ok = cam.project((points - pose1[:3, 3]) @ pose1[:3, :3])
+    np.testing.assert_allclose(seen[ok], at[r, c][ok], atol=1e-6)
+    pose2 = moved(pose0, [0.5, 0.0, 0.05], yaw_deg=3.0)   # and with a translation: ~1 / range
+    shift = {}
+    for rng_m in (5.0, 10.0, 1e6):
+        points = pose0[:3, 3] + rng_m * (rays @ pose0[:3, :3].T)
+        seen, ok = cam.project((points - pose2[:3, 3]) @ pose2[:3, :3])
+        shift[rng_m] = np.linalg.norm(seen - det._at_infinity(pose0, pose2)[r, c], axis=-1)
+    far = np.isfinite(shift[5.0]) & np.isfinite(shift[10.0]) & (shift[10.0] > 0.5)
+    assert np.median(shift[5.0][far] / shift[10.0][far]) == pytest.approx(2.0, rel=0.1)
+    assert np.nanmax(shift[1e6]) < 0.01
+
+
 def _crossing_car_pair():
     """A car crossing the road ahead of a camera at 30 km/h, frames 0 and 3: the camera, its
     renderer, both frames, their grey images and the exact flow (0 where a point leaves the
