@@ -1198,7 +1198,7 @@ def base_ratios(names=("crossing", "preceding", "approaching", "street_kb", "str
 
 
 def false_seed_predictions(names=("street_kb", "street_heldout_ds"),
-                           params: fm.Params | None = None) -> None:
+                           params: fm.Params | None = None, false_regions: bool = False) -> None:
     """Where the photometric check's static prediction is at the seeds (cells above the
     threshold that it does not explain) of ``params`` (default: ``Params()`` with the fixed
     tolerance only, ``photometric_range_error=0``; Farneback, streamed with ``apply()``), by
@@ -1206,12 +1206,16 @@ def false_seed_predictions(names=("street_kb", "street_heldout_ds"),
     error of the static prediction and of the measured flow against the exact flow (pixels),
     the median parallax (the prediction's distance from the image of its point at infinity),
     the quartiles of the prediction's error along the epipolar curve as a share of that
-    parallax (positive: the static point is nearer than predicted) and the median error
-    across the curve (pixels)."""
+    parallax (positive: the static point is nearer than predicted), the median error across
+    the curve (pixels), and the median photometric residuals (grey levels, the cell's mean
+    absolute difference) of the measured flow, the static prediction and the exact flow. With
+    ``false_regions``, only the seeds that land (by their flow) in a region of the result that
+    touches no moving object."""
     import pandas as pd
 
     from fisheyemotion import detector as detector_module
     from fisheyemotion.flow import grid_average
+    from fisheyemotion.photometric import cell_residual
 
     p = params if params is not None else fm.Params(photometric_range_error=0.0)
     g, gap = p.grid, p.frame_gap
@@ -1238,13 +1242,25 @@ def false_seed_predictions(names=("street_kb", "street_heldout_ds"),
                 result = det.apply(seq.frame(k), seq.poses[k])
                 if result is None or seen.get("seeds") is None:
                     continue
-                exact = grid_average(np.nan_to_num(renderer.flow(k, gap=gap), nan=1e4), g)
+                exact_px = np.nan_to_num(renderer.flow(k, gap=gap), nan=1e4).astype(np.float32)
+                exact = grid_average(exact_px, g)
                 static = grid_average(seen["static_flow"], g)
                 measured = result.grid.flow
                 t0, t1 = seq.poses[k - gap], seq.poses[k]
                 at_infinity = det._at_infinity(t0, t1)
                 ids = seq.ids(k - gap)[g // 2::g, g // 2::g]
+                prev, curr = (to_gray(seq.frame(i), "frame") for i in (k - gap, k))
+                residual = {name: cell_residual(prev, curr, flow, g, seen["seeds"]) for name, flow
+                            in (("measured", result.flow), ("static", seen["static_flow"]),
+                                ("exact", exact_px))}
+                count, regions = cv2.connectedComponents((result.mask > 0).astype(np.uint8))
+                moving = np.bincount(regions[seq.mask(k) > 0], minlength=count) > 0
                 for r, c in zip(*np.nonzero(seen["seeds"]), strict=True):
+                    u, v = np.round(det._centres[r, c] + measured[r, c]).astype(int)
+                    inside = 0 <= v < regions.shape[0] and 0 <= u < regions.shape[1]
+                    if false_regions and not (inside and regions[v, u] and not
+                                              moving[regions[v, u]]):
+                        continue
                     along = det._centres[r, c] + static[r, c] - at_infinity[r, c]
                     parallax = float(np.linalg.norm(along))
                     error = exact[r, c] - static[r, c]
@@ -1253,15 +1269,18 @@ def false_seed_predictions(names=("street_kb", "street_heldout_ds"),
                         "static": float(np.linalg.norm(error)),
                         "flow": float(np.linalg.norm(exact[r, c] - measured[r, c])),
                         "along": float(error @ along) / parallax ** 2,
-                        "across": abs(float(np.cross(along / parallax, error)))})
+                        "across": abs(float(np.cross(along / parallax, error))),
+                        **{f"r_{name}": float(x[r, c]) for name, x in residual.items()}})
     finally:
         cls._assemble = original
     table = pd.DataFrame(rows).groupby("surface").agg(
         seeds=("static", "size"), static_px=("static", "median"), flow_px=("flow", "median"),
         parallax_px=("parallax", "median"), along_q1=("along", lambda x: x.quantile(0.25)),
         along_median=("along", "median"), along_q3=("along", lambda x: x.quantile(0.75)),
-        across_px=("across", "median"))
-    print(f"seeds of {', '.join(names)} ({p.flow}):")
+        across_px=("across", "median"), r_measured=("r_measured", "median"),
+        r_static=("r_static", "median"), r_exact=("r_exact", "median"))
+    print(f"{'false regions' if false_regions else 'all'} seeds of {', '.join(names)} "
+          f"({p.flow}):")
     print(table.round(3).to_string())
 
 
