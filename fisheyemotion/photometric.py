@@ -83,7 +83,7 @@ _STEP = 1e-4  # radians along the epipolar circle, either way, for its image dir
 #: Pixels between the static correspondences that the off-arc test compares
 #: (``Params.photometric_search``).
 SEARCH_STEP = 1.0
-#: Moves a side at most of :func:`static_explained`'s tolerance along the epipolar curve: a
+#: The most moves either way along the epipolar curve that :func:`static_explained` samples: a
 #: tolerance up to 4 times ``Params.photometric_tolerance`` is sampled at that spacing, a wider
 #: one at quarters of itself.
 TOLERANCE_STEPS = 4
