@@ -5,6 +5,8 @@
                                                     # (needs `make demo`'s sequences)
     .venv/bin/python benchmarks/steps.py street data/params/scene_sweep.yaml   # other Params
     .venv/bin/python benchmarks/steps.py stream     # apply() over the stream benchmark's frames
+    .venv/bin/python benchmarks/steps.py stream data/params/fast_second_pass.yaml farneback
+                                                    # with Farneback instead of DIS ultrafast
 
 ``stream``: ``MotionDetector.apply`` frame by frame over the ``crossing`` scene's frames 6-17
 (after six that fill the frame gap and the scene model), as ``make bench``'s
@@ -12,7 +14,8 @@
 (``flow method``) and every other row is the non-flow work of a stream, per frame.
 
 ``MotionDetector.detect_flow`` with ``Params(flow="dis", dis_preset="ultrafast")`` (or a Params
-file's, with that flow), OpenCV on
+file's, with that flow; a third argument names another flow method, with the file's or the
+default settings), OpenCV on
 one thread, each of ``ROUNDS`` rounds right after a real flow call (as ``make bench``'s
 ``default_after_flow``), three passes first to fill the scene model. Each step is timed by a
 wrapper around the function of that name; a step's time includes the steps it calls, so the
@@ -61,7 +64,7 @@ def _pair(which: str):
     return cam, g0, g1, frames[0].pose, frames[1].pose, renderer.roi()
 
 
-def main(which: str = "crossing", params: str | None = None) -> None:
+def main(which: str = "crossing", params: str | None = None, flow: str = "dis") -> None:
     cv2.setNumThreads(1)
     detector_module = importlib.import_module("fisheyemotion.detector")
     totals: collections.defaultdict[str, float] = collections.defaultdict(float)
@@ -82,8 +85,9 @@ def main(which: str = "crossing", params: str | None = None) -> None:
         timed(detector_module.MotionDetector, name)
     for name in FUNCTIONS:
         timed(detector_module, name)
-    settings = fm.Params() if params is None else fm.Params.load(params)  # a Params file
-    settings = settings.replace(flow="dis", dis_preset="ultrafast")
+    settings = fm.Params() if not params else fm.Params.load(params)  # a Params file
+    settings = (settings.replace(flow="dis", dis_preset="ultrafast") if flow == "dis"
+                else settings.replace(flow=flow))
     if which == "stream":
         _stream(settings, timed, totals)
         return
@@ -142,4 +146,4 @@ def _stream(settings, timed, totals) -> None:
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:3])
+    main(*sys.argv[1:4])

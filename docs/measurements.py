@@ -1338,7 +1338,8 @@ def _setting_draws(name: str, values, draws: int, *, flow: str = "farneback") ->
             numbers = [g[[c for c in columns if c in g]].astype(float) for g in groups]
             mean = sum(numbers) / len(numbers)
             sd = np.sqrt(sum((n - mean) ** 2 for n in numbers) / (len(numbers) - 1))
-            print(f"{name} {value:g}, {flow}, {len(groups)} runs (means, per cent):")
+            shown = value if isinstance(value, str) else f"{value:g}"
+            print(f"{name} {shown}, {flow}, {len(groups)} runs (means, per cent):")
             print((100 * mean).round(1).to_string())
             print("false-positive frames SD: "
                   + ", ".join(f"{s} {100 * v:.1f}" for s, v in sd["FP frames"].items()))
@@ -1359,6 +1360,13 @@ def range_tolerance_draws(values=(0.0, 0.03), draws: int = 4) -> None:
     only), with Farneback and with DIS."""
     for flow in ("farneback", "dis"):
         _setting_draws("photometric_range_error", values, draws, flow=flow)
+
+
+def second_pass_flow_draws(values=("same", "dis-ultrafast", "dis-fast", "dis-medium"),
+                           draws: int = 4) -> None:
+    """:func:`_setting_draws` of ``Params.second_pass_flow``, with Farneback and with DIS."""
+    for flow in ("farneback", "dis"):
+        _setting_draws("second_pass_flow", values, draws, flow=flow)
 
 
 if __name__ == "__main__":

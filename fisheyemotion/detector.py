@@ -709,10 +709,13 @@ class MotionDetector:
             near = grown_from(seeds & near, near)
         if m.decided is not None:
             near &= ~m.decided
+        dis = p.flow == "dis" or p.second_pass_flow != "same"
         if self._second_flow is None:  # its own estimators: stream() runs the next flow meanwhile
-            self._second_flow = BoxFlows(lambda: FlowEstimator(p))
+            box = p if p.second_pass_flow == "same" else p.replace(
+                flow="dis", dis_preset=p.second_pass_flow.removeprefix("dis-"))
+            self._second_flow = BoxFlows(lambda: FlowEstimator(box))
         flow = second_flow(m.gray, m.curr, m.flow, near, p.grid, self._second_flow,
-                           size_step=SIZE_STEP if p.flow == "dis" else 1)
+                           size_step=SIZE_STEP if dis else 1)
         r, c = np.nonzero(near)
         g = p.grid
         at = self._centres[r, c] + grid_average(flow, g)[r, c]

@@ -17,6 +17,7 @@ DIS_PRESETS = ("ultrafast", "fast", "medium")
 LAMBDA_P_MODES = ("constant", "adaptive")
 POSE_REFINEMENTS = ("off", "on", "auto")
 FLOW_PRIORS = ("none", "ego", "warp")
+SECOND_PASS_FLOWS = ("same", "dis-ultrafast", "dis-fast", "dis-medium")
 
 #: Radians per pixel at the image centre of the cameras the defaults were chosen on (200 px/rad).
 REFERENCE_PIXEL_ANGLE = 1 / 200
@@ -313,6 +314,13 @@ class Params:
         :meth:`MotionDetector.flow` returned). 0: off (the paper;
         ``data/params/no_second_pass.yaml``). Measured in docs/evaluation.md (*Second
         flow pass*).
+    second_pass_flow : {'same', 'dis-ultrafast', 'dis-fast', 'dis-medium'}
+        The second pass's flow method. ``'same'`` (default): the detector's own flow method
+        and settings. ``'dis-<preset>'``: DIS at that preset whatever :attr:`flow` is, on boxes
+        whose sides are multiples of ``second_pass.SIZE_STEP``; ``'dis-fast'``
+        (``data/params/fast_second_pass.yaml``) takes about 5 ms a frame off a Farneback
+        stream's second pass at 2-3 points of crossing coverage (docs/evaluation.md, *Second
+        pass's flow method*).
     carry_share : float
         The result is measured on the previous frame's cells and carried to the current
         frame's: each cell by its mean flow (its centre's landing cell takes it), and, where
@@ -395,6 +403,7 @@ class Params:
     region_gap: int = 1
     antiparallel_seeds: int = 1
     second_pass: int = 2
+    second_pass_flow: str = "same"
     carry_share: float = 0.6
     receding: float = 2.0
     receding_candidates: float = 0.25
@@ -431,7 +440,8 @@ class Params:
             raise ValueError(f"saturation: expected > 0, got {self.saturation!r}")
         for name, options in (("lambda_p_mode", LAMBDA_P_MODES), ("flow", FLOW_METHODS),
                               ("dis_preset", DIS_PRESETS), ("flow_prior", FLOW_PRIORS),
-                              ("pose_refinement", POSE_REFINEMENTS)):
+                              ("pose_refinement", POSE_REFINEMENTS),
+                              ("second_pass_flow", SECOND_PASS_FLOWS)):
             if getattr(self, name) not in options:
                 raise ValueError(f"{name}: expected one of {', '.join(options)}, got "
                                  f"{_short(getattr(self, name))}")

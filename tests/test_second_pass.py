@@ -137,6 +137,25 @@ def test_the_second_pass_covers_more_of_a_crossing_pedestrian_and_not_more_aroun
     assert (out[2].likelihood < out[0].likelihood).any()  # lowered where it explains better
 
 
+def test_a_dis_second_pass_measures_with_dis_whatever_the_detectors_flow(crossing_pair,
+                                                                         monkeypatch):
+    cam, renderer, f0, f3 = crossing_pair
+    made = []
+    real = cv2.DISOpticalFlow_create
+
+    def create(preset):
+        made.append(preset)
+        return real(preset)
+
+    monkeypatch.setattr(cv2, "DISOpticalFlow_create", create)
+    for method, presets in (("same", []), ("dis-fast", [cv2.DISOPTICAL_FLOW_PRESET_FAST])):
+        made.clear()
+        det = fm.MotionDetector(cam, params=fm.Params(second_pass_flow=method),
+                                roi=renderer.roi())
+        det.detect(f0.image, f3.image, f0.pose, f3.pose)
+        assert sorted(set(made)) == presets  # Farneback's first pass creates no DIS object
+
+
 def test_only_the_detectors_own_flow_is_measured_again(crossing_pair):
     """``detect_flow`` of the array ``flow()`` returned is ``detect``; a flow from elsewhere
     (here a copy of the same) is taken as it is, as with the pass off."""
