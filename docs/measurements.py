@@ -1362,6 +1362,13 @@ def range_tolerance_draws(values=(0.0, 0.03), draws: int = 4) -> None:
         _setting_draws("photometric_range_error", values, draws, flow=flow)
 
 
+def edge_draws(values=(0.0, 0.1), draws: int = 4) -> None:
+    """:func:`_setting_draws` of ``Params.photometric_edge`` (0: off), with Farneback and with
+    DIS."""
+    for flow in ("farneback", "dis"):
+        _setting_draws("photometric_edge", values, draws, flow=flow)
+
+
 def second_pass_flow_draws(values=("same", "dis-ultrafast", "dis-fast", "dis-medium"),
                            draws: int = 4) -> None:
     """:func:`_setting_draws` of ``Params.second_pass_flow``, with Farneback and with DIS."""

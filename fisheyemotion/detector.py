@@ -52,7 +52,9 @@ from .photometric import (
     SEARCH_STEP,
     arc_candidates,
     cell_residual,
+    edge_explained,
     epipolar_directions,
+    hidden_cells,
     off_arc_supported,
     static_explained,
     sweep_ranges,
@@ -674,6 +676,16 @@ class MotionDetector:
                 gray, curr, flow, static_flow, p.grid, p.photometric_margin, cells=above,
                 tolerance=p.photometric_tolerance, directions=along, measured=measured,
                 reach=reach if p.photometric_range_error > 0 else None)
+            if p.photometric_edge > 0 and seeds.any() and not res.static_camera:
+                motion = self._at_cell_centres(static_flow)
+                parallax = np.linalg.norm(self._centres + motion - self._at_infinity(t0, t1),
+                                          axis=-1)
+                seeds &= ~edge_explained(gray, curr, p.grid, seeds, measured, motion, parallax,
+                                         p.photometric_edge)
+                # What a nearer neighbour hides now, only its own flow can show.
+                with np.errstate(invalid="ignore"):
+                    seeds &= ~(hidden_cells(p.grid, seeds, motion, parallax, p.photometric_edge)
+                               & ~(measured < p.photometric_margin))
             if p.photometric_view and seeds.any():
                 r, c = np.nonzero(seeds)
                 seeds[r, c] = testable_cells(predicted(r, c), self._inner_view(),

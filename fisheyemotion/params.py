@@ -135,6 +135,17 @@ class Params:
         predicted within ``photometric_tolerance``. Used only where it reaches
         ``photometric.MIN_REACH`` (0.8 px: a parallax of 27 px at 0.03), close structure. 0:
         the fixed tolerance only.
+    photometric_edge : float
+        Depth edges in the photometric check. A cell the static prediction leaves unexplained
+        is explained where the static motion of a neighbouring cell whose parallax exceeds its
+        own by this share (the nearer side of a depth edge, whose motion carries a cell that
+        holds both surfaces) explains the frames as well as the measured flow
+        (:func:`fisheyemotion.photometric.edge_explained`); where such a neighbour's static
+        point lands on the cell's in the current frame, the cell is hidden there and is a seed
+        only if its measured flow explains the frames
+        (:func:`~fisheyemotion.photometric.hidden_cells`). 0: off
+        (``data/params/no_edge_explained.yaml``). Measured in docs/evaluation.md (*Depth
+        edges*).
     photometric_arc : bool
         A cell the static scene does not explain starts a region only if the images support
         its deviation from the epipolar arc (moved onto the arc, the measured flow explains the
@@ -372,6 +383,7 @@ class Params:
     photometric_margin: float = 10.0
     photometric_tolerance: float = 0.25
     photometric_range_error: float = 0.03
+    photometric_edge: float = 0.1
     photometric_arc: bool = True
     photometric_view: bool = True
     photometric_search: float = 16.0
@@ -425,6 +437,7 @@ class Params:
                      "contact_arc", "range_consistency", "scene_sweep", "scene_sweep_margin",
                      "extent_reach", "extent_static",
                      "photometric_margin", "photometric_tolerance", "photometric_range_error",
+                     "photometric_edge",
                      "photometric_search",
                      "significance", "epipolar_significance", "flow_sigma", "position_sigma",
                      "refine_tolerance", "receding", "receding_candidates"):

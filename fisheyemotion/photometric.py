@@ -36,6 +36,20 @@ the two, sampled at moves at most ``t`` apart; only where the reach is at least
 :data:`MIN_REACH` (close structure: farther, slower-moving pedestrians walking along their
 curve were explained away by smaller reaches, measured).
 
+At a depth edge a cell holds two surfaces, and the static prediction, interpolated between the
+scene model's samples on either side, lands between their motions and explains neither. The
+nearer surface occludes the farther one, so its motion carries most of such a cell: with an
+``edge`` ratio, a cell still unexplained is explained where the static motion of one of its
+eight neighbouring cells whose parallax exceeds its own by that share (the nearer side of an
+edge) explains the frames at least as well as the measured flow, without the margin
+(:func:`edge_explained`). The parked cars' outlines on the demo streets are such cells; a
+pedestrian stepping out beside a parked car reads as static at the car's range when it walks
+towards the camera's path, which a looser comparison explained away (measured). The nearer
+surface also hides what lies behind it: a cell whose static point lands, in the current frame,
+where a nearer neighbour's lands (within :data:`COVERS` of a cell) is not shown by the current
+frame, and no static prediction can explain it (:func:`hidden_cells`); like a prediction out of
+view, it is a seed only where its measured flow explains the frames (:func:`testable_cells`).
+
 The images can only test a static prediction they show: where a cell's static point leaves
 the view (the previous frame's side of the image as the camera moves forward), its residual
 would compare the cell with the image's replicated border, and every such cell would look
@@ -93,13 +107,19 @@ TOLERANCE_STEPS = 4
 #: detections to smaller reaches on the demo streets (docs/evaluation.md, *Range tolerance*).
 MIN_REACH = 0.8
 
+#: Cells: a static point that a nearer neighbouring cell's static point lands within this
+#: distance of in the current frame is hidden there (:func:`hidden_cells`). A whole cell
+#: (measured) also hid parts of preceding and approaching vehicles.
+COVERS = 0.5
+
 #: Ranges (metres) that :func:`sweep_ranges` tries: 24 from 40 m to 1 m, uniform in inverse
 #: range (so uniform in parallax).
 SWEEP_RANGES = 1.0 / np.linspace(1.0 / 40.0, 1.0, 24)
 
-__all__ = ["MIN_REACH", "SEARCH_STEP", "SWEEP_RANGES", "TOLERANCE_STEPS", "arc_candidates",
-           "best_candidate", "cell_residual", "epipolar_directions", "off_arc_supported",
-           "static_explained", "sweep_ranges", "testable_cells"]
+__all__ = ["COVERS", "MIN_REACH", "SEARCH_STEP", "SWEEP_RANGES", "TOLERANCE_STEPS",
+           "arc_candidates", "best_candidate", "cell_residual", "edge_explained", "epipolar_directions",
+           "hidden_cells", "off_arc_supported", "static_explained", "sweep_ranges",
+           "testable_cells"]
 
 
 def cell_residual(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArray[np.float32],
@@ -141,7 +161,8 @@ def _cell_residuals(prev, curr, flow, grid, cells, shifts) -> list[NDArray[np.fl
 
 def _residuals(prev, curr, flow, grid, cells, shifts) -> NDArray[np.float64]:
     """``(m, n)``: the residual of each of the ``n`` cells of ``cells`` (row-major) for
-    ``flow`` moved by each of ``shifts`` (``(m, n, 2)`` finite pixels), in one kernel pass."""
+    ``flow`` moved by each of ``shifts`` (``(m, n, 2)`` pixels; a NaN shift gives NaN), in one
+    kernel pass."""
     from ._grid_kernels import block_residuals  # numba on first use: a light import
 
     r, c = (np.ascontiguousarray(i) for i in np.nonzero(cells))  # one kernel signature
@@ -259,6 +280,108 @@ def static_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
             for residual in moved:
                 explained |= left & (residual <= measured + margin)
     return explained
+
+
+def _nearer_neighbours(r: NDArray[np.intp], c: NDArray[np.intp], shape: tuple[int, int],
+                       parallax: NDArray[np.float64], ratio: float):
+    """For each of the eight neighbouring offsets: the neighbours ``(rn, cn)`` of cells
+    ``(r, c)`` (clipped to the grid) and whether each is inside the grid with a parallax at
+    least ``1 + ratio`` times the cell's (the nearer side of a depth edge)."""
+    rows, cols = shape
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            if dr == 0 and dc == 0:
+                continue
+            rn, cn = r + dr, c + dc
+            inside = (rn >= 0) & (rn < rows) & (cn >= 0) & (cn < cols)
+            rn, cn = np.clip(rn, 0, rows - 1), np.clip(cn, 0, cols - 1)
+            with np.errstate(invalid="ignore"):
+                yield rn, cn, inside & (parallax[rn, cn] >= (1.0 + ratio) * parallax[r, c])
+
+
+def edge_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8], grid: int,
+                   cells: NDArray[np.bool_], measured: NDArray[np.float32],
+                   motion: NDArray[np.float64], parallax: NDArray[np.float64], ratio: float
+                   ) -> NDArray[np.bool_]:
+    """Cells that the static motion of a nearer neighbouring cell explains (module doc).
+
+    Cell ``(r, c)`` of ``cells`` is explained where, for one of its eight neighbours ``n``
+    with ``parallax[n] >= (1 + ratio) parallax[r, c]``, the cell moved as a whole by
+    ``motion[n]`` explains the frames as well as the measured flow: ``r_n <= measured``.
+
+    Parameters
+    ----------
+    prev, curr : ndarray of uint8, shape (H, W)
+    grid : int
+        Cell size, pixels.
+    cells : ndarray of bool, shape (rows, cols)
+        The cells to test.
+    measured : ndarray, shape (rows, cols)
+        The measured flow's :func:`cell_residual` (at least at ``cells``; NaN: not explained).
+    motion : ndarray, shape (rows, cols, 2)
+        Each cell's static displacement, pixels (the static scene's flow at its centre; NaN
+        where unknown).
+    parallax : ndarray, shape (rows, cols)
+        Each cell's static parallax, pixels (its prediction's distance from the image of its
+        point at infinity; NaN where unknown).
+    ratio : float
+        How much larger a neighbour's parallax must be, as a share of the cell's (>= 0).
+
+    Returns
+    -------
+    ndarray of bool, shape (rows, cols)
+        False outside ``cells``.
+    """
+    out = np.zeros(cells.shape, bool)
+    r, c = np.nonzero(cells)
+    if len(r) == 0:
+        return out
+    shifts = [np.where(nearer[:, None], motion[rn, cn], np.nan)
+              for rn, cn, nearer in _nearer_neighbours(r, c, cells.shape, parallax, ratio)]
+    # Each cell moved rigidly (the static flow interpolates across the edge, a ramp over the
+    # cell); a NaN shift gives a NaN residual, which explains nothing.
+    still = np.zeros(prev.shape[:2] + (2,), np.float32)
+    residuals = _residuals(prev, curr, still, grid, cells, np.stack(shifts))
+    with np.errstate(invalid="ignore"):
+        out[r, c] = (residuals <= measured[r, c]).any(axis=0)
+    return out
+
+
+def hidden_cells(grid: int, cells: NDArray[np.bool_], motion: NDArray[np.float64],
+                 parallax: NDArray[np.float64], ratio: float) -> NDArray[np.bool_]:
+    """Cells whose static point a nearer neighbouring cell's covers in the current frame
+    (module doc): for one of the eight neighbours ``n`` with ``parallax[n] >= (1 + ratio)
+    parallax[r, c]``, the two static predictions (cell centre plus ``motion``) land within
+    :data:`COVERS` cells of each other.
+
+    Parameters
+    ----------
+    grid : int
+        Cell size, pixels.
+    cells : ndarray of bool, shape (rows, cols)
+        The cells to test.
+    motion, parallax : ndarray, shape (rows, cols, 2) and (rows, cols)
+        As for :func:`edge_explained`.
+    ratio : float
+
+    Returns
+    -------
+    ndarray of bool, shape (rows, cols)
+        False outside ``cells`` and where a prediction is not finite.
+    """
+    out = np.zeros(cells.shape, bool)
+    r, c = np.nonzero(cells)
+    if len(r) == 0:
+        return out
+    centre = (grid - 1) / 2
+    lands = np.stack([c * grid + centre, r * grid + centre], axis=-1) + motion[r, c]
+    hidden = np.zeros(len(r), bool)
+    for rn, cn, nearer in _nearer_neighbours(r, c, cells.shape, parallax, ratio):
+        there = np.stack([cn * grid + centre, rn * grid + centre], axis=-1) + motion[rn, cn]
+        with np.errstate(invalid="ignore"):
+            hidden |= nearer & (np.linalg.norm(there - lands, axis=-1) < COVERS * grid)
+    out[r, c] = hidden
+    return out
 
 
 def arc_candidates(rays0: NDArray[np.float64], arc: NDArray[np.float64], pose0: NDArray,

@@ -741,6 +741,81 @@ def test_the_reach_widens_the_tolerance_cell_by_cell_along_the_curve_only():
                                 )[cells].all() == found
 
 
+def _depth_edge(near_cols: int = 34):
+    """Two textured surfaces side by side: the left one (columns below ``near_cols``, nearer)
+    moves 4 px right, the right one 1 px, and the nearer one hides what the farther one moves
+    under. Cell column 6 (pixels 30-34) holds both: four columns of the near surface, one of
+    the far."""
+    rng = np.random.default_rng(12)
+    prev = cv2.GaussianBlur(rng.integers(0, 255, (60, 80), dtype=np.uint8), (3, 3), 0.7)
+    curr = np.where(np.arange(80) < near_cols + 4, np.roll(prev, 4, axis=1),
+                    np.roll(prev, 1, axis=1)).astype(np.uint8)
+    motion = np.zeros((12, 16, 2))
+    motion[:, :6, 0], motion[:, 6, 0], motion[:, 7:, 0] = 4.0, 2.5, 1.0  # 2.5: interpolated
+    return prev, curr, motion
+
+
+@pytest.mark.parametrize("ratio,explained", [(0.1, True), (0.5, True), (1.0, False)])
+def test_a_cell_on_a_depth_edge_is_explained_by_its_nearer_neighbours_motion(ratio, explained):
+    """Its own static prediction is interpolated across the edge and the measured flow is
+    smoothed across it (2.5 px); moved as a whole with the near neighbour (parallax 4 against
+    2.5: 60 % more) four fifths of it match."""
+    from fisheyemotion.photometric import cell_residual, edge_explained
+
+    prev, curr, motion = _depth_edge()
+    parallax = np.linalg.norm(motion, axis=-1)
+    smoothed = np.zeros((60, 80, 2), np.float32)
+    smoothed[..., 0] = 2.5
+    measured = cell_residual(prev, curr, smoothed, 5)
+    cells = np.zeros((12, 16), bool)
+    cells[2:-2, 6] = True
+    out = edge_explained(prev, curr, 5, cells, measured, motion, parallax, ratio)
+    assert out[cells].all() == explained and not out[~cells].any()
+    if explained:  # the farther side is never tried: the same cell with the sides swapped
+        swapped = parallax.copy()
+        swapped[:, :6], swapped[:, 7:] = 1.0, 4.0
+        assert not edge_explained(prev, curr, 5, cells, measured, motion, swapped, ratio)[cells].any()
+
+
+def test_a_moving_cell_beside_a_nearer_surface_is_not_explained_by_it():
+    """The same edge, but cell column 6 holds something that moved 3 px left: neither
+    neighbour's motion explains it as well as the measured flow, which follows it."""
+    from fisheyemotion.photometric import cell_residual, edge_explained
+
+    prev, curr, motion = _depth_edge()
+    curr = curr.copy()
+    curr[:, 27:32] = prev[:, 30:35]                       # the cell's content, 3 px left
+    follows = np.zeros((60, 80, 2), np.float32)
+    follows[:, 30:35, 0] = -3.0
+    measured = cell_residual(prev, curr, follows, 5)
+    cells = np.zeros((12, 16), bool)
+    cells[2:-2, 6] = True
+    parallax = np.linalg.norm(motion, axis=-1)
+    assert not edge_explained(prev, curr, 5, cells, measured, motion, parallax, 0.1).any()
+
+
+@pytest.mark.parametrize("near,lands,hidden", [(True, 1.0, True), (True, 4.0, False),
+                                               (False, 1.0, False)])
+def test_a_cell_is_hidden_where_a_nearer_neighbours_static_point_lands_on_its_own(near, lands,
+                                                                                hidden):
+    """The cell left of a cell moves 5 px right, onto it; the cell itself ``lands`` px right
+    (its prediction lands ``lands`` px from the neighbour's: hidden within half a 5-px cell),
+    and the neighbour is the nearer one or the farther."""
+    from fisheyemotion.photometric import COVERS, hidden_cells
+
+    assert COVERS * 5 > 1.0 and COVERS * 5 < 4.0
+    motion = np.zeros((6, 8, 2))
+    motion[3, 2, 0], motion[3, 3, 0] = 5.0, lands
+    parallax = np.full((6, 8), 2.0)
+    parallax[3, 2] = 4.0 if near else 1.0
+    cells = np.zeros((6, 8), bool)
+    cells[3, 3] = True
+    out = hidden_cells(5, cells, motion, parallax, 0.1)
+    assert out[3, 3] == hidden and not out[~cells].any()
+    motion[3, 3] = np.nan                                  # no prediction: not hidden
+    assert not hidden_cells(5, cells, motion, parallax, 0.1).any()
+
+
 def test_the_parallax_is_the_distance_from_the_point_at_infinity():
     cam = tumvi_kb(640, 480, 200.0)
     det = fm.MotionDetector(cam, fm.Road(), params=fm.Params())
