@@ -678,8 +678,12 @@ class MotionDetector:
                 reach=reach if p.photometric_range_error > 0 else None)
             if p.photometric_edge > 0 and seeds.any() and not res.static_camera:
                 motion = self._at_cell_centres(static_flow)
-                parallax = np.linalg.norm(self._centres + motion - self._at_infinity(t0, t1),
-                                          axis=-1)
+                # The parallax of the seeds and their neighbours (NaN elsewhere).
+                around = cv2.dilate(seeds.view(np.uint8), np.ones((3, 3), np.uint8)) > 0
+                parallax = np.full(seeds.shape, np.nan)
+                parallax[around] = np.linalg.norm(
+                    self._centres[around] + motion[around] - self._at_infinity(t0, t1, around),
+                    axis=-1)
                 seeds &= ~edge_explained(gray, curr, p.grid, seeds, measured, motion, parallax,
                                          p.photometric_edge)
                 # What a nearer neighbour hides now, only its own flow can show.

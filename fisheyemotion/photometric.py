@@ -282,21 +282,21 @@ def static_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
     return explained
 
 
+_OFFSETS = np.array([(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc])
+
+
 def _nearer_neighbours(r: NDArray[np.intp], c: NDArray[np.intp], shape: tuple[int, int],
-                       parallax: NDArray[np.float64], ratio: float):
-    """For each of the eight neighbouring offsets: the neighbours ``(rn, cn)`` of cells
-    ``(r, c)`` (clipped to the grid) and whether each is inside the grid with a parallax at
-    least ``1 + ratio`` times the cell's (the nearer side of a depth edge)."""
+                       parallax: NDArray[np.float64], ratio: float
+                       ) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.bool_]]:
+    """The eight neighbours ``(rn, cn)`` of cells ``(r, c)``, each ``(8, n)`` (clipped to the
+    grid), and whether each is inside the grid with a parallax at least ``1 + ratio`` times the
+    cell's (the nearer side of a depth edge)."""
     rows, cols = shape
-    for dr in (-1, 0, 1):
-        for dc in (-1, 0, 1):
-            if dr == 0 and dc == 0:
-                continue
-            rn, cn = r + dr, c + dc
-            inside = (rn >= 0) & (rn < rows) & (cn >= 0) & (cn < cols)
-            rn, cn = np.clip(rn, 0, rows - 1), np.clip(cn, 0, cols - 1)
-            with np.errstate(invalid="ignore"):
-                yield rn, cn, inside & (parallax[rn, cn] >= (1.0 + ratio) * parallax[r, c])
+    rn, cn = r + _OFFSETS[:, :1], c + _OFFSETS[:, 1:]
+    inside = (rn >= 0) & (rn < rows) & (cn >= 0) & (cn < cols)
+    rn, cn = np.clip(rn, 0, rows - 1), np.clip(cn, 0, cols - 1)
+    with np.errstate(invalid="ignore"):
+        return rn, cn, inside & (parallax[rn, cn] >= (1.0 + ratio) * parallax[r, c])
 
 
 def edge_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8], grid: int,
@@ -336,12 +336,12 @@ def edge_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8], grid: int,
     r, c = np.nonzero(cells)
     if len(r) == 0:
         return out
-    shifts = [np.where(nearer[:, None], motion[rn, cn], np.nan)
-              for rn, cn, nearer in _nearer_neighbours(r, c, cells.shape, parallax, ratio)]
+    rn, cn, nearer = _nearer_neighbours(r, c, cells.shape, parallax, ratio)
     # Each cell moved rigidly (the static flow interpolates across the edge, a ramp over the
     # cell); a NaN shift gives a NaN residual, which explains nothing.
     still = np.zeros(prev.shape[:2] + (2,), np.float32)
-    residuals = _residuals(prev, curr, still, grid, cells, np.stack(shifts))
+    residuals = _residuals(prev, curr, still, grid, cells,
+                           np.where(nearer[..., None], motion[rn, cn], np.nan))
     with np.errstate(invalid="ignore"):
         out[r, c] = (residuals <= measured[r, c]).any(axis=0)
     return out
@@ -373,14 +373,13 @@ def hidden_cells(grid: int, cells: NDArray[np.bool_], motion: NDArray[np.float64
     r, c = np.nonzero(cells)
     if len(r) == 0:
         return out
-    centre = (grid - 1) / 2
-    lands = np.stack([c * grid + centre, r * grid + centre], axis=-1) + motion[r, c]
-    hidden = np.zeros(len(r), bool)
-    for rn, cn, nearer in _nearer_neighbours(r, c, cells.shape, parallax, ratio):
-        there = np.stack([cn * grid + centre, rn * grid + centre], axis=-1) + motion[rn, cn]
-        with np.errstate(invalid="ignore"):
-            hidden |= nearer & (np.linalg.norm(there - lands, axis=-1) < COVERS * grid)
-    out[r, c] = hidden
+    rn, cn, nearer = _nearer_neighbours(r, c, cells.shape, parallax, ratio)
+    # Where the neighbour lands relative to where the cell lands: its offset plus the motions'
+    # difference.
+    dx = (cn - c) * grid + motion[rn, cn, 0] - motion[r, c, 0]
+    dy = (rn - r) * grid + motion[rn, cn, 1] - motion[r, c, 1]
+    with np.errstate(invalid="ignore"):
+        out[r, c] = (nearer & (dx * dx + dy * dy < (COVERS * grid) ** 2)).any(axis=0)
     return out
 
 
