@@ -56,7 +56,9 @@ def _assert_same(a, b):
 def test_stream_gives_apply_results_deciding_in_a_second_thread(frames, road, monkeypatch):
     items = [(f.image, f.pose) for f in frames]
     expected = _applied(fm.MotionDetector(CAM, road, PARAMS), items)
-    assert sum(r is not None and r.mask.any() for r, _ in expected) >= 3  # something to compare
+    # Something to compare beyond the likelihood maps (compared in every frame): masks in two
+    # frames (three until 0.8.17's depth edges removed a false region of this street).
+    assert sum(r is not None and r.mask.any() for r, _ in expected) >= 2
 
     threads = []
     decide = fm.MotionDetector._decide
