@@ -666,10 +666,12 @@ class MotionDetector:
             def along(cells):  # the epipolar curves at the cells' predicted points
                 return epipolar_directions(self.camera, predicted(*np.nonzero(cells)), t0, t1)
 
+            def parallax(cells):  # the predictions' distance from their points at infinity
+                return np.linalg.norm(predicted(*np.nonzero(cells))
+                                      - self._at_infinity(t0, t1, cells), axis=-1)
+
             def reach(cells):  # how far the prediction's range error moves it, pixels
-                parallax = np.linalg.norm(predicted(*np.nonzero(cells))
-                                          - self._at_infinity(t0, t1, cells), axis=-1)
-                return p.photometric_range_error * parallax
+                return p.photometric_range_error * parallax(cells)
 
             measured = cell_residual(gray, curr, flow, p.grid, above)  # shared by both tests
             seeds = above & ~static_explained(
@@ -680,15 +682,13 @@ class MotionDetector:
                 motion = self._at_cell_centres(static_flow)
                 # The parallax of the seeds and their neighbours (NaN elsewhere).
                 around = cv2.dilate(seeds.view(np.uint8), np.ones((3, 3), np.uint8)) > 0
-                parallax = np.full(seeds.shape, np.nan)
-                parallax[around] = np.linalg.norm(
-                    self._centres[around] + motion[around] - self._at_infinity(t0, t1, around),
-                    axis=-1)
-                seeds &= ~edge_explained(gray, curr, p.grid, seeds, measured, motion, parallax,
+                near = np.full(seeds.shape, np.nan)
+                near[around] = parallax(around)
+                seeds &= ~edge_explained(gray, curr, p.grid, seeds, measured, motion, near,
                                          p.photometric_edge)
                 # What a nearer neighbour hides now, only its own flow can show.
                 with np.errstate(invalid="ignore"):
-                    seeds &= ~(hidden_cells(p.grid, seeds, motion, parallax, p.photometric_edge)
+                    seeds &= ~(hidden_cells(p.grid, seeds, motion, near, p.photometric_edge)
                                & ~(measured < p.photometric_margin))
             if p.photometric_view and seeds.any():
                 r, c = np.nonzero(seeds)

@@ -117,9 +117,9 @@ COVERS = 0.5
 SWEEP_RANGES = 1.0 / np.linspace(1.0 / 40.0, 1.0, 24)
 
 __all__ = ["COVERS", "MIN_REACH", "SEARCH_STEP", "SWEEP_RANGES", "TOLERANCE_STEPS",
-           "arc_candidates", "best_candidate", "cell_residual", "edge_explained", "epipolar_directions",
-           "hidden_cells", "off_arc_supported", "static_explained", "sweep_ranges",
-           "testable_cells"]
+           "arc_candidates", "best_candidate", "cell_residual", "edge_explained",
+           "epipolar_directions", "hidden_cells", "off_arc_supported", "static_explained",
+           "sweep_ranges", "testable_cells"]
 
 
 def cell_residual(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArray[np.float32],
