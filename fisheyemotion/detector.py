@@ -682,13 +682,13 @@ class MotionDetector:
                 motion = self._at_cell_centres(static_flow)
                 # The parallax of the seeds and their neighbours (NaN elsewhere).
                 around = cv2.dilate(seeds.view(np.uint8), np.ones((3, 3), np.uint8)) > 0
-                near = np.full(seeds.shape, np.nan)
-                near[around] = parallax(around)
-                seeds &= ~edge_explained(gray, curr, p.grid, seeds, measured, motion, near,
+                depth = np.full(seeds.shape, np.nan)  # parallax: the larger, the nearer
+                depth[around] = parallax(around)
+                seeds &= ~edge_explained(gray, curr, p.grid, seeds, measured, motion, depth,
                                          p.photometric_edge)
                 # What a nearer neighbour hides now, only its own flow can show.
                 with np.errstate(invalid="ignore"):
-                    seeds &= ~(hidden_cells(p.grid, seeds, motion, near, p.photometric_edge)
+                    seeds &= ~(hidden_cells(p.grid, seeds, motion, depth, p.photometric_edge)
                                & ~(measured < p.photometric_margin))
             if p.photometric_view and seeds.any():
                 r, c = np.nonzero(seeds)
