@@ -18,7 +18,7 @@ from fisheyemotion.cli import REPO_DATA, CliError, calib_files, calibration_tabl
 from fisheyemotion.outputs import atomic_folder
 from fisheyemotion.params import Params
 
-from .evaluate import evaluate, sequence_paths
+from .evaluate import EXACT, evaluate, sequence_paths
 from .pose_sources import Perturbation
 from .report import table2_by_flow, write_report
 
@@ -60,11 +60,13 @@ def _non_negative(text: str) -> float:
 
 
 def _flows(text: str) -> list[str]:
+    """``--flow``: flow methods, and ``exact`` for the rendered scenes' exact flow."""
     flows = [f.strip() for f in text.split(",") if f.strip()]
-    bad = [f for f in flows if f not in ("farneback", "dis")]
+    bad = [f for f in flows if f not in ("farneback", "dis", EXACT)]
     if bad or not flows:
-        raise CliError(f"--flow: expected a comma-separated list of farneback, dis; got {text!r}")
-    return flows
+        raise CliError("--flow: expected a comma-separated list of farneback, dis, exact; got "
+                       f"{text!r}")
+    return list(dict.fromkeys(flows))
 
 
 def run_eval(paths: list[Path], params: Params, flows: list[str], out: Path, *,
@@ -72,9 +74,11 @@ def run_eval(paths: list[Path], params: Params, flows: list[str], out: Path, *,
              commands: list[str] | None = None, title: str = "fisheyemotion evaluation",
              real_data: Path | None = None, **options):
     results = []
-    for flow in flows:
-        results += evaluate(paths, params.replace(flow=flow), workers=workers,
-                            scheduler=scheduler, progress=progress, **options)
+    for flow in flows:  # the exact flow (rendered scenes only) replaces the flow method
+        exact = flow == EXACT
+        results += evaluate(paths, params if exact else params.replace(flow=flow),
+                            workers=workers, scheduler=scheduler, progress=progress,
+                            exact_flow=exact, **options)
     real = pairs = None
     if real_data is not None and (real_data / "real").is_dir():
         from .real import run_pairs, run_real
@@ -112,7 +116,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
 def _write_additions(paths: list[Path], args: argparse.Namespace, out: Path) -> None:
     from .evaluate import additions_table
 
-    table, scenes = additions_table(paths, _flows(args.flow), workers=args.workers,
+    flows = [f for f in _flows(args.flow) if f != EXACT]  # the table has its exact-flow row
+    table, scenes = additions_table(paths, flows or ["farneback"], workers=args.workers,
                                     progress=not args.quiet, by_sequence=True)
     table.to_csv(out / "additions.csv", index=False)
     scenes.to_csv(out / "additions_by_sequence.csv", index=False)
@@ -198,7 +203,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--params", help="YAML/JSON file of Params, or 'paper' for the paper's "
                    "pipeline (default: the defaults)")
     p.add_argument("--flow", default="farneback",
-                   help="flow methods, comma-separated: farneback,dis (default: %(default)s)")
+                   help="flow methods, comma-separated: farneback, dis, and exact for the "
+                        "rendered scenes' exact flow (default: %(default)s)")
     p.add_argument("--out", required=True, help="report folder (written whole at the end)")
     p.add_argument("--overwrite", action="store_true", help="replace a non-empty --out")
     p.add_argument("--workers", type=_workers, help="local processes (default: CPU count)")
@@ -236,7 +242,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "one in --params, off)")
     p.add_argument("--additions", action="store_true",
                    help="also evaluate the paper's pipeline with each addition alone and all "
-                        "together (additions.csv, a section of report.md)")
+                        "together (additions.csv, a section of report.md), with the flow "
+                        "methods of --flow (farneback if it names only exact)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_eval)
 
@@ -263,8 +270,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="frames per open-road scenario; the streets keep their own 48 "
                         "(default: %(default)s)")
     p.add_argument("--scenarios", help="comma-separated scenario names (default: all)")
-    p.add_argument("--flow", default="farneback,dis",
-                   help="flow methods, comma-separated (default: %(default)s)")
+    p.add_argument("--flow", default="farneback,dis,exact",
+                   help="flow methods, comma-separated: farneback, dis, and exact for the "
+                        "rendered scenes' exact flow (default: %(default)s)")
     p.add_argument("--workers", type=_workers, help="local processes (default: CPU count)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_demo)

@@ -85,6 +85,9 @@ class SequenceResult:
 #: Flow (pixels) given to the exact-flow mode where the point leaves the camera's domain.
 OUT_OF_VIEW = 1e5
 
+#: The ``flow`` label of the results of the exact-flow mode (``exact_flow=True``).
+EXACT = "exact"
+
 
 def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
                       range_limit: float = 8.0, min_coverage: float = 0.0,
@@ -205,7 +208,8 @@ def evaluate_sequence(path: str | os.PathLike, params: Params | None = None, *,
             abl_rows.append({"variant": name, "kind": "frame", "fp_frame": f["fp_frame"],
                              "static_flagged": f["static_flagged"]})
     return SequenceResult(
-        sequence=seq.name, flow=params.flow, objects=pd.DataFrame(obj_rows),
+        sequence=seq.name, flow=EXACT if exact_flow else params.flow,
+        objects=pd.DataFrame(obj_rows),
         frames=pd.DataFrame(frame_rows), moving_above=moving_above, static_above=static_above,
         n_moving=n_moving, n_static=n_static, ablation=pd.DataFrame(abl_rows), examples=examples)
 
@@ -359,7 +363,7 @@ def additions_table(paths: list, flows: list[str], *, workers: int | None = None
                            ablation=False, exact_flow=exact)
             tables = combine(res)
             t = table2(tables["objects"], tables["frames"]).set_index("category")
-            row = {"flow": "exact" if exact else flow, "variant": name}
+            row = {"flow": EXACT if exact else flow, "variant": name}
             for cat in t.index:
                 row[f"{cat} det"] = t.loc[cat, "detection_rate"]
                 row[f"{cat} cov"] = t.loc[cat, "coverage_rate"]

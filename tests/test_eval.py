@@ -189,6 +189,44 @@ def test_end_to_end_report(sequences, tmp_path):
     assert {"epipolar only", "depth only", "height only", "antiparallel only"} <= set(abl.variant)
 
 
+def test_the_exact_flow_is_reported_beside_a_flow_method(sequences, tmp_path):
+    """``--flow farneback,exact``: the rendered scenes' exact flow is one more row of every
+    table, labelled ``exact``, with the figures of ``evaluate(..., exact_flow=True)``."""
+    results, _ = run_eval(sequences, FAST, ["farneback", "exact"], tmp_path / "report",
+                          workers=1, scheduler=None, progress=False)
+    assert [r.flow for r in results] == ["farneback", "farneback", "exact", "exact"]
+    direct = evaluate(sequences, FAST, workers=1, progress=False, exact_flow=True)
+    for ours, theirs in zip(results[2:], direct, strict=True):
+        pd.testing.assert_frame_equal(ours.frames, theirs.frames)
+        pd.testing.assert_frame_equal(ours.objects, theirs.objects)
+    assert not results[0].frames.equals(results[2].frames)  # not the flow method's run again
+    for name in ("groups.csv", "false_positives.csv"):
+        assert set(pd.read_csv(tmp_path / "report" / name).flow) == {"farneback", "exact"}
+    wide = pd.read_csv(tmp_path / "report" / "table2.csv")
+    assert {"farneback_detection", "exact_detection"} <= set(wide.columns)
+
+
+def test_the_exact_flow_of_a_sequence_without_its_scenario_is_one_clear_error(
+        sequences, tmp_path, capsys):
+    import shutil
+
+    from fisheyemotion.cli import main
+
+    seq = tmp_path / "no_scenario"
+    shutil.copytree(sequences[0], seq)
+    (seq / "scenario.yaml").unlink()
+    out = tmp_path / "report"
+    assert main(["eval", str(seq), "--flow", "exact", "--out", str(out), "--workers", "1",
+                 "--quiet"]) != 0
+    err = capsys.readouterr().err
+    assert "scenario.yaml" in err and "Traceback" not in err
+    assert not out.exists()  # no half-written report
+    assert main(["eval", str(seq), "--flow", "farneback,optical", "--out", str(out),
+                 "--quiet"]) != 0
+    assert "--flow: expected a comma-separated list of farneback, dis, exact" in \
+        capsys.readouterr().err
+
+
 @pytest.mark.parametrize("params", [FAST, fm.Params(flow="dis", dis_preset="fast", grid=4,
                                                      min_area=48)],
                          ids=["gap2-fb", "defaults-gap3"])
