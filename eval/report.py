@@ -18,7 +18,7 @@ from fisheyemotion.detector import MotionDetector
 from fisheyemotion.params import Params
 from fisheyemotion.sequence import Sequence
 
-from .evaluate import SequenceResult, combine
+from .evaluate import EXACT, SequenceResult, combine
 from .metrics import CATEGORY_ORDER, PAPER_TABLE2, pixel_scores, sweep, table2
 from .real import TOLERANCE_PX
 
@@ -27,12 +27,25 @@ def _pct(x: float) -> str:
     return "—" if x is None or (isinstance(x, float) and np.isnan(x)) else f"{100 * x:.0f}%"
 
 
+def flow_order(results: list[SequenceResult]) -> list[str]:
+    """The flow methods of ``results`` in the order they were run (``--flow``'s): every table
+    and figure of the report lists them so."""
+    return list(dict.fromkeys(r.flow for r in results))
+
+
+def _in_flow_order(table: pd.DataFrame, results: list[SequenceResult]) -> pd.DataFrame:
+    """``table``'s rows by scene group, then in :func:`flow_order`."""
+    rank = {flow: i for i, flow in enumerate(flow_order(results))}
+    return table.sort_values(["scenes", "flow"], kind="stable", key=lambda col: col.map(rank)
+                             if col.name == "flow" else col).reset_index(drop=True)
+
+
 def table2_by_flow(results: list[SequenceResult]) -> pd.DataFrame:
     """Our Table 2 for each flow method beside the paper's numbers (wide table)."""
     out = PAPER_TABLE2.rename(columns={"frames": "paper_frames", "detection_rate": "paper_detection",
                                        "coverage_rate": "paper_coverage"})
     tables = combine(results)
-    for flow in sorted({r.flow for r in results}):
+    for flow in flow_order(results):
         objs = tables["objects"]
         frames = tables["frames"]
         t = table2(objs[objs.flow == flow] if len(objs) else objs, frames[frames.flow == flow])
@@ -65,7 +78,7 @@ def diagnose(results: list[SequenceResult], params: Params) -> list[str]:
     objs, frames = tables["objects"], tables["frames"]
     paper = PAPER_TABLE2.set_index("category")
     weights = dict(zip(CONSTRAINT_NAMES, params.weights, strict=True))
-    for flow in sorted({r.flow for r in results}):
+    for flow in flow_order(results):
         o = objs[objs.flow == flow] if len(objs) else objs
         f = frames[frames.flow == flow]
         ours = table2(o, f).set_index("category")
@@ -145,7 +158,7 @@ def fig_pr(results: list[SequenceResult], params: Params) -> tuple[Figure, pd.Da
     fig = Figure(figsize=(9, 3.6), layout="constrained")
     ax_pr, ax_roc = fig.subplots(1, 2)
     curves = []
-    for flow in sorted({r.flow for r in results}):
+    for flow in flow_order(results):
         rs = [r for r in results if r.flow == flow and r.moving_above is not None]
         if not rs:
             continue
@@ -173,6 +186,7 @@ def fig_categories(results: list[SequenceResult]) -> Figure:
     ax = fig.subplots()
     if len(objs):
         rate = objs.groupby(["sequence", "flow"]).detected.mean().unstack("flow")
+        rate = rate[[f for f in flow_order(results) if f in rate.columns]]
         rate.plot.bar(ax=ax, rot=30)
         ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), title="flow")
     ax.set_xlabel("sequence")
@@ -214,7 +228,7 @@ def ablation_table(results: list[SequenceResult], params: Params) -> pd.DataFram
     tables = combine(results)
     abl, objs, frames = tables["ablation"], tables["objects"], tables["frames"]
     rows = []
-    for flow in sorted({r.flow for r in results}):
+    for flow in flow_order(results):
         o = objs[objs.flow == flow] if len(objs) else objs
         f = frames[frames.flow == flow]
         rows.append({"flow": flow, "variant": f"paper weights {params.weights}",
@@ -261,7 +275,7 @@ def groups_table(results: list[SequenceResult]) -> pd.DataFrame:
         row["static flagged"] = t.loc["false positives", "coverage_rate"]
         row["IoU"] = pixel_scores(f)["iou"]
         rows.append(row)
-    return pd.DataFrame(rows)
+    return _in_flow_order(pd.DataFrame(rows), results)
 
 
 def false_positive_table(results: list[SequenceResult]) -> pd.DataFrame:
@@ -281,7 +295,7 @@ def false_positive_table(results: list[SequenceResult]) -> pd.DataFrame:
         row.update({f"led by {c.removeprefix('fp_')}": f[c].sum() / t_tot if t_tot else np.nan
                     for c in terms})
         rows.append(row)
-    return pd.DataFrame(rows)
+    return _in_flow_order(pd.DataFrame(rows), results)
 
 
 def _inline(text: str) -> str:
@@ -376,7 +390,7 @@ def write_report(results: list[SequenceResult], out: str | Path, params: Params,
     :func:`~fisheyemotion.eval.real.run_pairs`')."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    flows = sorted({r.flow for r in results})
+    flows = flow_order(results)
     tables = combine(results)
     wide = table2_by_flow(results)
     abl = ablation_table(results, params)
@@ -410,8 +424,12 @@ def write_report(results: list[SequenceResult], out: str | Path, params: Params,
                                    "fp_frames": "FP frames", "static_flagged": "static flagged"})
     md = [f"# {title}", "",
           f"{len({r.sequence for r in results})} sequences rendered with ground truth, flow "
-          f"method{'s' if len(flows) > 1 else ''} {', '.join(flows)}. Objects count within "
-          f"{8.0:g} m of the camera, as in the paper. Settings: see *Run settings* below.", "",
+          f"method{'s' if len(flows) > 1 else ''} {', '.join(flows)}"
+          + (" (exact: the rendered scenes' exact flow in place of a flow method, what the "
+             "constraints and region tests do with perfect correspondences)"
+             if EXACT in flows else "")
+          + f". Objects count within {8.0:g} m of the camera, as in the paper. Settings: see "
+          "*Run settings* below.", "",
           "## Table 2: ours beside the paper's", "",
           "**Detection** (det.): share of object-frames (an object in view in one frame) with at "
           "least one of its pixels detected. **Coverage** (cov.): mean share of an object's pixels "
