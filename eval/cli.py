@@ -16,7 +16,7 @@ from tqdm import tqdm
 from fisheyemotion import calib, synth
 from fisheyemotion.cli import REPO_DATA, CliError, calib_files, calibration_table, integer_type
 from fisheyemotion.outputs import atomic_folder
-from fisheyemotion.params import Params
+from fisheyemotion.params import FLOW_METHODS, Params
 
 from .evaluate import EXACT, evaluate, sequence_paths
 from .pose_sources import Perturbation
@@ -62,9 +62,10 @@ def _non_negative(text: str) -> float:
 def _flows(text: str) -> list[str]:
     """``--flow``: flow methods, and ``exact`` for the rendered scenes' exact flow."""
     flows = [f.strip() for f in text.split(",") if f.strip()]
-    bad = [f for f in flows if f not in ("farneback", "dis", EXACT)]
+    known = (*FLOW_METHODS, EXACT)
+    bad = [f for f in flows if f not in known]
     if bad or not flows:
-        raise CliError("--flow: expected a comma-separated list of farneback, dis, exact; got "
+        raise CliError(f"--flow: expected a comma-separated list of {', '.join(known)}; got "
                        f"{text!r}")
     return list(dict.fromkeys(flows))
 
@@ -117,7 +118,7 @@ def _write_additions(paths: list[Path], args: argparse.Namespace, out: Path) -> 
     from .evaluate import additions_table
 
     flows = [f for f in _flows(args.flow) if f != EXACT]  # the table has its exact-flow row
-    table, scenes = additions_table(paths, flows or ["farneback"], workers=args.workers,
+    table, scenes = additions_table(paths, flows or [Params().flow], workers=args.workers,
                                     progress=not args.quiet, by_sequence=True)
     table.to_csv(out / "additions.csv", index=False)
     scenes.to_csv(out / "additions_by_sequence.csv", index=False)
@@ -243,7 +244,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--additions", action="store_true",
                    help="also evaluate the paper's pipeline with each addition alone and all "
                         "together (additions.csv, a section of report.md), with the flow "
-                        "methods of --flow (farneback if it names only exact)")
+                        "methods of --flow (the default one if it names only exact)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_eval)
 
