@@ -1369,6 +1369,13 @@ def edge_draws(values=(0.0, 0.1), draws: int = 4) -> None:
         _setting_draws("photometric_edge", values, draws, flow=flow)
 
 
+def span_draws(values=(0.0, 0.35), draws: int = 4) -> None:
+    """:func:`_setting_draws` of ``Params.photometric_span`` (0: off), with Farneback and with
+    DIS medium."""
+    for flow in ("farneback", "dis"):
+        _setting_draws("photometric_span", values, draws, flow=flow)
+
+
 def second_pass_flow_draws(values=("same", "dis-ultrafast", "dis-fast", "dis-medium"),
                            draws: int = 4) -> None:
     """:func:`_setting_draws` of ``Params.second_pass_flow``, with Farneback and with DIS."""

@@ -50,12 +50,15 @@ from .grow import grow_regions
 from .params import Params
 from .photometric import (
     SEARCH_STEP,
+    SPAN_CANDIDATES,
+    UNDER_ROAD,
     arc_candidates,
     cell_residual,
     edge_explained,
     epipolar_directions,
     hidden_cells,
     off_arc_supported,
+    span_explained,
     static_explained,
     sweep_ranges,
     testable_cells,
@@ -66,7 +69,7 @@ from .receding import receding_cells, road_ranges
 from .refinement import PoseRefiner
 from .road import Road
 from .second_pass import SIZE_STEP, BoxFlows, better_explained, near_cells, second_flow
-from .segment import grown_from, segment_cells
+from .segment import LED, grown_from, segment_cells
 from .significance import cell_sigma, pixel_angle, pose_sigma
 from .static_scene import TRIANGULATION_PARALLAX, StaticScene, triangulate_range, world_points
 
@@ -109,6 +112,12 @@ class _Measured(NamedTuple):
     informed: bool  # the static prediction read the scene model's points (the growth's residual)
     decided: NDArray[np.bool_] | None  # cells a region test explained (ground contact) or raised
     own_flow: bool  # the flow is the detector's own (its flow method may measure again)
+    # The span before the pair's (its previous frame's pose and gray image, and the scene
+    # model's ranges at the cells before this pair's update) and the cells whose motion along
+    # the travel no number of views tells from a static point (floating, receding): the
+    # two-span test's (``params.photometric_span``).
+    before: tuple[NDArray[np.float64], NDArray[np.uint8], NDArray[np.float64]] | None = None
+    along_travel: NDArray[np.bool_] | None = None
 
 
 class MotionDetector:
@@ -203,6 +212,10 @@ class MotionDetector:
         # previous one (MotionDetector.stream decides beside the next pair's flow).
         self._textures: deque[tuple[NDArray[np.uint8], NDArray[np.bool_]]] = deque(
             maxlen=self.params.frame_gap + 1)
+        # A stream's last pairs (current pose's bytes, previous pose, previous gray image): the
+        # span before a pair is the one whose current frame is the pair's previous frame.
+        self._spans: deque[tuple[bytes, NDArray[np.float64], NDArray[np.uint8]]] = deque(
+            maxlen=self.params.frame_gap + 2)
 
     def detect(self, prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray,
                pose1: NDArray) -> Detection:
@@ -421,6 +434,7 @@ class MotionDetector:
         self._history.clear()
         self._bootstrapped = False
         self._textures.clear()
+        self._spans.clear()
         self._ranges.clear()
         self._temporal = None
         self._tracker, self.last_pose = None, None
@@ -583,7 +597,16 @@ class MotionDetector:
         if p.min_texture > 0 and gray is not None:
             valid &= self._textured_cells(gray)
         static_flow = None  # before the scene model learns from this pair (the prior uses it)
-        decided = None
+        decided = along_travel = span_before = None
+        if stream and p.photometric_span > 0 and gray is not None and curr is not None:
+            key = t0.tobytes()
+            span_before = next(((q, g) for k, q, g in reversed(self._spans) if k == key), None)
+            self._spans.append((t1.tobytes(), t0, gray))
+            if span_before is not None and self.scene is not None and len(self.scene):
+                # the model as the pair's prior read it, before this pair's update
+                span_before = (*span_before, self._scene_ranges_at_cells(t0))
+            else:
+                span_before = None
         # The pair's static prediction read the stream's scene model, not only the road and the
         # far field (before the model learns from this pair).
         informed = stream and self.scene is not None and len(self.scene) > 0
@@ -618,8 +641,8 @@ class MotionDetector:
                 conditioned = parallax >= np.sin(TRIANGULATION_PARALLAX)
             if contact:
                 before = likelihood
-                likelihood, doubted = self._explain_standing(res, likelihood, valid, ranges,
-                                                             range_error, sigma, t0)
+                likelihood, doubted, along_travel = self._explain_standing(
+                    res, likelihood, valid, ranges, range_error, sigma, t0)
                 with np.errstate(invalid="ignore"):
                     decided = likelihood < before
             if recede:
@@ -628,6 +651,7 @@ class MotionDetector:
                 with np.errstate(invalid="ignore"):
                     raised = likelihood > before
                 decided = raised if decided is None else decided | raised
+                along_travel = raised if along_travel is None else along_travel | raised
             if three:
                 likelihood = self._three_views(likelihood, valid & conditioned, ranges,
                                                range_error, cell_flow, gray, curr, t0, t1)
@@ -645,7 +669,8 @@ class MotionDetector:
                          sigma, static_flow, self.road,
                          self._prior_road(t0, t1) if p.grow > 0 else None, stream,
                          p.min_texture > 0 and curr is not None and bool(self._history)
-                         and self._history[-1][0] is curr, informed, decided, own_flow)
+                         and self._history[-1][0] is curr, informed, decided, own_flow,
+                         span_before, along_travel)
 
     def _decide(self, m: _Measured) -> Detection:
         """A measured pair's result: the photometric check's seeds, the growth and the
@@ -697,6 +722,9 @@ class MotionDetector:
             if p.photometric_arc and seeds.any() and not res.static_camera:
                 seeds &= self._supported_off_arc(seeds, flow, cell_flow, m.rays1, t0, t1, gray,
                                                  curr, m.sigma, measured, m.road)
+            if p.photometric_span > 0 and m.before is not None and seeds.any() \
+                    and not res.static_camera:
+                seeds &= ~self._span_explained(m, seeds, measured)
         if p.second_pass > 0 and m.own_flow and gray is not None and curr is not None \
                 and not res.static_camera:
             likelihood = self._second_pass(m, seeds)
@@ -752,6 +780,32 @@ class MotionDetector:
                                           near.shape)
         out[r[take], c[take]] = likelihood[take]
         return out
+
+    def _span_explained(self, m: _Measured, seeds: NDArray[np.bool_], measured: NDArray
+                        ) -> NDArray[np.bool_]:
+        """The seeds that one static point explains over the pair and the span before it
+        (:func:`~fisheyemotion.photometric.span_explained`): candidate ranges within
+        ``params.photometric_span`` of the scene model's (log-uniform), none under the road;
+        not the cells whose motion along the travel the region tests found (``m.along_travel``),
+        which no number of views tells from a static point."""
+        p = self.params
+        pose_before, before, model = m.before
+        cells = seeds & np.isfinite(model)
+        if m.along_travel is not None:
+            cells &= ~m.along_travel
+        if not cells.any():
+            return cells
+        r, c = np.nonzero(cells)
+        factors = np.exp(np.linspace(-p.photometric_span, p.photometric_span, SPAN_CANDIDATES))
+        points = world_points(self._rays0[r, c][None], model[r, c] * factors[:, None], m.t0)
+        static = m.road.height(points) >= -UNDER_ROAD if m.road.known else True
+
+        def moves(pose: NDArray) -> NDArray[np.float64]:  # each candidate's cell shift, pixels
+            pixels, ok = self.camera.project((points - pose[:3, 3]) @ pose[:3, :3])
+            return np.where((ok & static)[..., None], pixels - self._centres[r, c], np.nan)
+
+        return span_explained(m.gray, m.curr, before, p.grid, cells, measured, moves(m.t1),
+                              moves(pose_before))
 
     def _cell_pixel_angle(self) -> NDArray[np.float64]:
         """Radians per pixel at each cell centre (:func:`~fisheyemotion.significance.pixel_angle`),
@@ -908,13 +962,14 @@ class MotionDetector:
             p.weights)
 
     def _explain_standing(self, res: ConstraintResult, likelihood, valid, ranges, range_error,
-                          sigma, pose0) -> tuple[NDArray, NDArray[np.bool_]]:
+                          sigma, pose0) -> tuple[NDArray, NDArray[np.bool_], NDArray[np.bool_]]:
         """The likelihood with the anti-parallel deviation removed from regions that stand on
         the road (:mod:`fisheyemotion.ground_contact`) and agree with the scene model or,
         with ``params.contact_arc``, lie on their epipolar arc (``range_error``: each cell's
         relative range error from its flow's; ``sigma``: its flow's angular error), and, with
         ``params.contact_epipolar``, their epipolar deviation counted in sigmas only; and the
-        cells explained by their arc alone, whose range disagrees with the model's."""
+        cells explained by their arc alone, whose range disagrees with the model's; and the
+        cells of the regions led by the anti-parallel term that float (do not stand)."""
         p = self.params
         doubted = np.zeros(likelihood.shape, bool)
         weighted = self._antiparallel_part(res)
@@ -922,10 +977,11 @@ class MotionDetector:
             moving = valid & (likelihood > p.threshold)
             share = np.where(moving, weighted / likelihood, 0.0)
         if not moving.any():
-            return likelihood, doubted
+            return likelihood, doubted, doubted.copy()
         stands = standing_regions(moving, share, ranges, self._rays0, pose0, self.camera,
                                   self.road, p.grid, ratio=p.contact_ratio,
                                   columns=p.contact_columns)
+        floating = moving & (share >= LED) & ~stands  # led by the anti-parallel term
         if self.scene is not None and len(self.scene) and stands.any():
             # A static point stays where it was: a cell whose range disagrees with what the
             # scene model measured along its ray before, by more than the flow's error explains,
@@ -953,7 +1009,7 @@ class MotionDetector:
                 rest = res.likelihood - weighted - p.weights[0] * epipolar / sum(p.weights)
                 rest = self._with_significance(res, sigma, rest)
                 explained = np.where(on_arc, rest, explained)
-        return explained, doubted
+        return explained, doubted, floating
 
     def _receding(self, likelihood, valid, ranges, range_error, pose0) -> NDArray[np.float64]:
         """The likelihood raised on the regions whose base reads beyond the road it stands on

@@ -146,6 +146,18 @@ class Params:
         (:func:`~fisheyemotion.photometric.hidden_cells`). 0: off
         (``data/params/no_edge_explained.yaml``). Measured in docs/evaluation.md (*Depth
         edges*).
+    photometric_span : float
+        Two spans of a stream in the photometric check. A seed is explained where one static
+        point along its ray, at a range within this relative spread (log-uniform, either way)
+        of the scene model's and not under the road, explains the cell both in the pair's
+        current frame and in the frame a gap before the pair's previous one, each at least as
+        well as the measured flow explains the pair
+        (:func:`fisheyemotion.photometric.span_explained`): static structure whose model range
+        is off, which a pair alone cannot tell from an object moving along its epipolar arc.
+        Not where the region tests found motion along the direction of travel (a floating or
+        receding region), which reads as one static point in any number of views. Streams only
+        (the previous span's frame); 0: off (``data/params/no_two_spans.yaml``). Measured in
+        docs/evaluation.md (*Two spans*).
     photometric_arc : bool
         A cell the static scene does not explain starts a region only if the images support
         its deviation from the epipolar arc (moved onto the arc, the measured flow explains the
@@ -384,6 +396,7 @@ class Params:
     photometric_tolerance: float = 0.25
     photometric_range_error: float = 0.03
     photometric_edge: float = 0.1
+    photometric_span: float = 0.35
     photometric_arc: bool = True
     photometric_view: bool = True
     photometric_search: float = 16.0
@@ -437,7 +450,7 @@ class Params:
                      "contact_arc", "range_consistency", "scene_sweep", "scene_sweep_margin",
                      "extent_reach", "extent_static",
                      "photometric_margin", "photometric_tolerance", "photometric_range_error",
-                     "photometric_edge",
+                     "photometric_edge", "photometric_span",
                      "photometric_search",
                      "significance", "epipolar_significance", "flow_sigma", "position_sigma",
                      "refine_tolerance", "receding", "receding_candidates"):

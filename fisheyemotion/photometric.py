@@ -50,6 +50,20 @@ where a nearer neighbour's lands (within :data:`COVERS` of a cell) is not shown 
 frame, and no static prediction can explain it (:func:`hidden_cells`); like a prediction out of
 view, it is a seed only where its measured flow explains the frames (:func:`testable_cells`).
 
+A stream has seen more than the pair. The scene model's range of a parked car is off by ten per
+cent where each pair's flow followed the prior it was warped by, and no tolerance tells that
+from a pedestrian walking along its epipolar arc, whose pair two views read as a static point
+at another range. Over a longer time the two part: a static point stays where it is, so one
+range explains its cell both in the pair's current frame and in the frame one span *before*
+the pair's previous frame, while no one range fits a pedestrian in both (the best misses by
+0.7–2 px for one walking towards the path 4–6 m away, at 6 m/s and 15 fps, a 3-frame span;
+within one pair it fits exactly). A seed is therefore explained where one of a few ranges along
+its ray, around the scene model's and above the road, explains the cell in both frames at least
+as well as the measured flow explains the pair (:func:`span_explained`). Motion along the
+direction of travel at a constant speed reads as one static point in any number of views
+(docs/geometry.md, *Three views of a static point*): the detector leaves out the cells the
+region tests found floating or receding.
+
 The images can only test a static prediction they show: where a cell's static point leaves
 the view (the previous frame's side of the image as the camera moves forward), its residual
 would compare the cell with the image's replicated border, and every such cell would look
@@ -112,14 +126,21 @@ MIN_REACH = 0.8
 #: (measured) also hid parts of preceding and approaching vehicles.
 COVERS = 0.5
 
+#: Candidate ranges of the two-span test (:func:`span_explained`): log-uniform over
+#: ``Params.photometric_span`` either way of the scene model's (29 over 0.35: 2.5 % apart).
+SPAN_CANDIDATES = 29
+#: Metres: a candidate point more than this under the road is no static point.
+UNDER_ROAD = 0.1
+
 #: Ranges (metres) that :func:`sweep_ranges` tries: 24 from 40 m to 1 m, uniform in inverse
 #: range (so uniform in parallax).
 SWEEP_RANGES = 1.0 / np.linspace(1.0 / 40.0, 1.0, 24)
 
-__all__ = ["COVERS", "MIN_REACH", "SEARCH_STEP", "SWEEP_RANGES", "TOLERANCE_STEPS",
+__all__ = ["COVERS", "MIN_REACH", "SEARCH_STEP", "SPAN_CANDIDATES", "SWEEP_RANGES",
+           "TOLERANCE_STEPS", "UNDER_ROAD",
            "arc_candidates", "best_candidate", "cell_residual", "edge_explained",
-           "epipolar_directions", "hidden_cells", "off_arc_supported", "static_explained",
-           "sweep_ranges", "testable_cells"]
+           "epipolar_directions", "hidden_cells", "off_arc_supported", "span_explained",
+           "static_explained", "sweep_ranges", "testable_cells"]
 
 
 def cell_residual(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArray[np.float32],
@@ -344,6 +365,49 @@ def edge_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8], grid: int,
                            np.where(nearer[..., None], motion[rn, cn], np.nan))
     with np.errstate(invalid="ignore"):
         out[r, c] = (residuals <= measured[r, c]).any(axis=0)
+    return out
+
+
+def span_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8], before: NDArray[np.uint8],
+                   grid: int, cells: NDArray[np.bool_], measured: NDArray,
+                   to_curr: NDArray[np.float64], to_before: NDArray[np.float64]
+                   ) -> NDArray[np.bool_]:
+    """Cells that one static point explains over two spans of a stream (module doc).
+
+    Each cell ``(r, c)`` of ``cells`` (row-major, as :func:`numpy.nonzero` lists them) has
+    ``k`` candidate static points (ranges along its ray); candidate ``j`` moves the cell as a
+    whole by ``to_curr[j, i]`` into ``curr`` and by ``to_before[j, i]`` into ``before`` (the
+    frame a span before ``prev``). The cell is explained where, for one candidate, the larger
+    of the two residuals is at most ``measured``: one point explains the frames on both sides
+    of ``prev`` as well as the measured flow explains the pair.
+
+    Parameters
+    ----------
+    prev, curr, before : ndarray of uint8, shape (H, W)
+    grid : int
+        Cell size, pixels.
+    cells : ndarray of bool, shape (rows, cols)
+        The ``n`` cells to test.
+    measured : ndarray, shape (rows, cols)
+        The measured flow's :func:`cell_residual` (at least at ``cells``; NaN: not explained).
+    to_curr, to_before : ndarray, shape (k, n, 2)
+        Pixels; NaN where a candidate is not a static point (out of the camera's domain,
+        under the road): such a candidate explains nothing.
+
+    Returns
+    -------
+    ndarray of bool, shape (rows, cols)
+        False outside ``cells``.
+    """
+    out = np.zeros(cells.shape, bool)
+    r, c = np.nonzero(cells)
+    if len(r) == 0:
+        return out
+    still = np.zeros(prev.shape[:2] + (2,), np.float32)
+    worse = np.maximum(_residuals(prev, curr, still, grid, cells, to_curr),  # NaN stays NaN
+                       _residuals(prev, before, still, grid, cells, to_before))
+    with np.errstate(invalid="ignore"):  # NaN (no candidate) compares False
+        out[r, c] = (worse <= measured[r, c]).any(axis=0)
     return out
 
 
