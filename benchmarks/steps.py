@@ -45,7 +45,7 @@ ROUNDS = 100
 #: Methods of MotionDetector, then functions as the detector module calls them.
 METHODS = ("_measure", "_decide", "_assemble", "_explain_standing", "_textured_cells",
            "_supported_off_arc", "_grown", "_temporal_filter", "_static_prior", "_one_flow",
-           "_second_pass", "_receding")
+           "_second_pass", "_receding", "_span_explained")
 FUNCTIONS = ("constraints", "cell_sigma", "triangulate_range", "grid_upsample", "grow_to_extent",
              "static_explained", "cell_residual", "grid_transfer", "pixel_transfer",
              "segment_cells", "grid_average", "warp_by", "second_flow", "better_explained",
@@ -56,12 +56,13 @@ def _pair(which: str):
     if which == "street":
         seq = Sequence(ROOT / "data" / "generated" / "demo" / "sequences" / "street_kb")
         return (seq.camera, to_gray(seq.frame(20), "frame"), to_gray(seq.frame(23), "frame"),
-                seq.poses[20], seq.poses[23], seq.roi())
+                seq.poses[20], seq.poses[23], seq.roi(),
+                (to_gray(seq.frame(17), "frame"), seq.poses[17]))
     cam = fm.calib.load(ROOT / "data" / "calib" / "front_kb_640x480.yaml")
     renderer = synth.Renderer(cam, synth.load_scenario("crossing"))
     frames = [renderer.render(k) for k in (0, 3)]
     g0, g1 = (np.ascontiguousarray(f.image.mean(axis=-1).astype(np.uint8)) for f in frames)
-    return cam, g0, g1, frames[0].pose, frames[1].pose, renderer.roi()
+    return cam, g0, g1, frames[0].pose, frames[1].pose, renderer.roi(), None
 
 
 def main(which: str = "crossing", params: str | None = None, flow: str = "dis") -> None:
@@ -91,8 +92,11 @@ def main(which: str = "crossing", params: str | None = None, flow: str = "dis") 
     if which == "stream":
         _stream(settings, timed, totals)
         return
-    cam, g0, g1, p0, p1, roi = _pair(which)
+    cam, g0, g1, p0, p1, roi, before = _pair(which)
     det = fm.MotionDetector(cam, params=settings, roi=roi)
+    if before is not None:  # the pair before, so that the two-span test has its span
+        gb, pb = before
+        det.detect_flow(det.flow(gb, g0, pb, p0), pb, p0, prev=gb, curr=g0, stream=True)
     flow = det.flow(g0, g1, p0, p1)
     for _ in range(3):
         det.detect_flow(flow, p0, p1, prev=g0, curr=g1, stream=True)

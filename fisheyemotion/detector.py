@@ -17,7 +17,7 @@ from __future__ import annotations
 import contextlib
 import itertools
 import warnings
-from collections import deque
+from collections import OrderedDict, deque
 from collections.abc import Iterable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import NamedTuple
@@ -212,10 +212,10 @@ class MotionDetector:
         # previous one (MotionDetector.stream decides beside the next pair's flow).
         self._textures: deque[tuple[NDArray[np.uint8], NDArray[np.bool_]]] = deque(
             maxlen=self.params.frame_gap + 1)
-        # A stream's last pairs (current pose's bytes, previous pose, previous gray image): the
-        # span before a pair is the one whose current frame is the pair's previous frame.
-        self._spans: deque[tuple[bytes, NDArray[np.float64], NDArray[np.uint8]]] = deque(
-            maxlen=self.params.frame_gap + 2)
+        # A stream's last pairs, by their current pose's bytes: (previous pose, previous gray
+        # image). The span before a pair is the one whose current frame is its previous frame.
+        self._spans: OrderedDict[bytes, tuple[NDArray[np.float64], NDArray[np.uint8]]] = \
+            OrderedDict()
 
     def detect(self, prev: NDArray[np.uint8], curr: NDArray[np.uint8], pose0: NDArray,
                pose1: NDArray) -> Detection:
@@ -599,9 +599,11 @@ class MotionDetector:
         static_flow = None  # before the scene model learns from this pair (the prior uses it)
         decided = along_travel = span_before = None
         if stream and p.photometric_span > 0 and gray is not None and curr is not None:
-            key = t0.tobytes()
-            span_before = next(((q, g) for k, q, g in reversed(self._spans) if k == key), None)
-            self._spans.append((t1.tobytes(), t0, gray))
+            span_before = self._spans.get(t0.tobytes())
+            self._spans[t1.tobytes()] = (t0, gray)
+            self._spans.move_to_end(t1.tobytes())
+            while len(self._spans) > p.frame_gap + 2:  # the pairs a decision may still need
+                self._spans.popitem(last=False)
             if span_before is not None and self.scene is not None and len(self.scene):
                 # the model as the pair's prior read it, before this pair's update
                 span_before = (*span_before, self._scene_ranges_at_cells(t0))
