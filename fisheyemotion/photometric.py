@@ -197,6 +197,13 @@ def _residuals(prev, curr, flow, grid, cells, shifts) -> NDArray[np.float64]:
     return values.reshape(m, n)
 
 
+def _moved_residuals(prev, curr, grid, cells, shifts) -> NDArray[np.float64]:
+    """``(m, n)``: :func:`_residuals` of the ``n`` cells moved as a whole by each of ``shifts``
+    (``(m, n, 2)`` pixels, no flow under them; a NaN shift gives NaN)."""
+    return _residuals(prev, curr, np.zeros(prev.shape[:2] + (2,), np.float32), grid, cells,
+                      shifts)
+
+
 def testable_cells(predicted: NDArray[np.float64], view: NDArray[np.bool_],
                    measured: NDArray, margin: float) -> NDArray[np.bool_]:
     """Cells whose static prediction the images can test: it lands on ``view``, or the
@@ -360,9 +367,8 @@ def edge_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8], grid: int,
     rn, cn, nearer = _nearer_neighbours(r, c, cells.shape, parallax, ratio)
     # Each cell moved rigidly (the static flow interpolates across the edge, a ramp over the
     # cell); a NaN shift gives a NaN residual, which explains nothing.
-    still = np.zeros(prev.shape[:2] + (2,), np.float32)
-    residuals = _residuals(prev, curr, still, grid, cells,
-                           np.where(nearer[..., None], motion[rn, cn], np.nan))
+    residuals = _moved_residuals(prev, curr, grid, cells,
+                                 np.where(nearer[..., None], motion[rn, cn], np.nan))
     with np.errstate(invalid="ignore"):
         out[r, c] = (residuals <= measured[r, c]).any(axis=0)
     return out
@@ -403,9 +409,8 @@ def span_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8], before: NDA
     r, c = np.nonzero(cells)
     if len(r) == 0:
         return out
-    still = np.zeros(prev.shape[:2] + (2,), np.float32)
-    worse = np.maximum(_residuals(prev, curr, still, grid, cells, to_curr),  # NaN stays NaN
-                       _residuals(prev, before, still, grid, cells, to_before))
+    worse = np.maximum(_moved_residuals(prev, curr, grid, cells, to_curr),  # NaN stays NaN
+                       _moved_residuals(prev, before, grid, cells, to_before))
     with np.errstate(invalid="ignore"):  # NaN (no candidate) compares False
         out[r, c] = (worse <= measured[r, c]).any(axis=0)
     return out
