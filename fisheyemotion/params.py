@@ -396,7 +396,7 @@ class Params:
     photometric_tolerance: float = 0.25
     photometric_range_error: float = 0.03
     photometric_edge: float = 0.1
-    photometric_span: float = 0.35
+    photometric_span: float = 0.2
     photometric_arc: bool = True
     photometric_view: bool = True
     photometric_search: float = 16.0

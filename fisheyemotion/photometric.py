@@ -127,7 +127,7 @@ MIN_REACH = 0.8
 COVERS = 0.5
 
 #: Candidate ranges of the two-span test (:func:`span_explained`): log-uniform over
-#: ``Params.photometric_span`` either way of the scene model's (29 over 0.35: 2.5 % apart).
+#: ``Params.photometric_span`` either way of the scene model's (29 over 0.2: 1.4 % apart).
 SPAN_CANDIDATES = 29
 #: Metres: a candidate point more than this under the road is no static point.
 UNDER_ROAD = 0.1

@@ -36,7 +36,7 @@ CASES = {
                                 "photometric_range_error: expected a finite number"),
     "no_edge_explained.yaml": ("photometric_edge", 0.0, 0.1, None, (-0.1, float("nan"), "a"),
                                "photometric_edge: expected a finite number"),
-    "no_two_spans.yaml": ("photometric_span", 0.0, 0.35, None, (-0.1, float("nan"), "a"),
+    "no_two_spans.yaml": ("photometric_span", 0.0, 0.2, None, (-0.1, float("nan"), "a"),
                           "photometric_span: expected a finite number"),
     "no_pixel_carry.yaml": ("carry_share", 0.0, 0.6, 0.0, (-0.1, 1.5, float("nan"), "a"),
                             "carry_share: expected a number in"),
