@@ -116,7 +116,7 @@ class _Measured(NamedTuple):
     # model's ranges at the cells before this pair's update) and the cells whose motion along
     # the travel no number of views tells from a static point (floating, receding): the
     # two-span test's (``params.photometric_span``).
-    before: tuple[NDArray[np.float64], NDArray[np.uint8], NDArray[np.float64]] | None = None
+    span_before: tuple[NDArray[np.float64], NDArray[np.uint8], NDArray[np.float64]] | None = None
     along_travel: NDArray[np.bool_] | None = None
 
 
@@ -724,7 +724,7 @@ class MotionDetector:
             if p.photometric_arc and seeds.any() and not res.static_camera:
                 seeds &= self._supported_off_arc(seeds, flow, cell_flow, m.rays1, t0, t1, gray,
                                                  curr, m.sigma, measured, m.road)
-            if p.photometric_span > 0 and m.before is not None and seeds.any() \
+            if p.photometric_span > 0 and m.span_before is not None and seeds.any() \
                     and not res.static_camera:
                 seeds &= ~self._span_explained(m, seeds, measured)
         if p.second_pass > 0 and m.own_flow and gray is not None and curr is not None \
@@ -791,7 +791,7 @@ class MotionDetector:
         not the cells whose motion along the travel the region tests found (``m.along_travel``),
         which no number of views tells from a static point."""
         p = self.params
-        pose_before, before, model = m.before
+        pose_before, before, model = m.span_before
         cells = seeds & np.isfinite(model)
         if m.along_travel is not None:
             cells &= ~m.along_travel
