@@ -20,7 +20,9 @@ given the true ranges, where a moving object's coverage is lost step by step, th
 pedestrians' cells flagged by their elevation from the plane through the epipole, how far
 the flow departs from the prior it was warped by, and the photometric search's reach and the
 share a carried cell needs (``Params.carry_share``) and the receding test (``Params.receding``)
-over five runs, and how far beyond the road the exact flow reads each moving object's base.
+over five runs, how far beyond the road the exact flow reads each moving object's base, what
+the two-span test leaves against the true ranges and visibility, and how much of a crossing
+pedestrian two views show given the exact flow and Farneback's.
 
     .venv/bin/python docs/measurements.py true_depth_prior_bounds   # one of them, by name
 """
@@ -1369,7 +1371,7 @@ def edge_draws(values=(0.0, 0.1), draws: int = 4) -> None:
         _setting_draws("photometric_edge", values, draws, flow=flow)
 
 
-def span_draws(values=(0.0, 0.35), draws: int = 4) -> None:
+def span_draws(values=(0.0, 0.2, 0.35), draws: int = 4) -> None:
     """:func:`_setting_draws` of ``Params.photometric_span`` (0: off), with Farneback and with
     DIS medium."""
     for flow in ("farneback", "dis"):
@@ -1381,6 +1383,172 @@ def second_pass_flow_draws(values=("same", "dis-ultrafast", "dis-fast", "dis-med
     """:func:`_setting_draws` of ``Params.second_pass_flow``, with Farneback and with DIS."""
     for flow in ("farneback", "dis"):
         _setting_draws("second_pass_flow", values, draws, flow=flow)
+
+
+def span_at_true_ranges(names=("street_kb", "street_ds", "street_heldout_kb",
+                               "street_heldout_ds")) -> None:
+    """What the two-span test (``Params.photometric_span``) leaves, against the truth
+    (``Params()``, Farneback, streamed as the evaluation does): every seed it tests, on a static
+    surface or a moving object (the renderer's ids at the cell centre on the pair's previous
+    frame), explained by the test or not, then explained by the same test with the single
+    candidate at the renderer's true range of the cell centre, and whether that true point is
+    seen in the pair's current frame and in the frame a span before (the range seen where it
+    projects within 5 % of its own, no moving object there; or behind a moving object) and whether the cell straddles a
+    depth edge (its pixels' true ranges more than 10 % apart). Static seeds the true range does
+    not explain are those a rigidly moved cell cannot explain, whatever range the model held.
+    ``names``: the sequences."""
+    import pandas as pd
+
+    from fisheyemotion import detector as detector_module
+    from fisheyemotion.eval.evaluate import evaluate_sequence
+    from fisheyemotion.photometric import span_explained
+    from fisheyemotion.static_scene import world_points
+
+    cls = detector_module.MotionDetector
+    original = cls._span_explained
+    rows = []
+    for name in names:
+        seq = Sequence(SEQUENCES / name)
+        renderer = Renderer(seq.camera, load_scenario(seq.path / "scenario.yaml"),
+                            supersample=1)
+        frame_of = {pose.tobytes(): k for k, pose in enumerate(seq.poses)}
+        truth: dict = {}
+
+        def rendered(k, renderer=renderer, truth=truth):
+            if k not in truth:
+                frame = renderer.render(k)
+                truth[k] = (np.where(np.isfinite(frame.range), frame.range, np.inf),
+                            frame.moving > 0)
+            return truth[k]
+
+        def spy(self, m, seeds, measured, name=name, frame_of=frame_of, rendered=rendered):
+            out = original(self, m, seeds, measured)
+            pose_before, before, model = m.span_before
+            cells = seeds & np.isfinite(model)
+            if m.along_travel is not None:
+                cells &= ~m.along_travel
+            k0, k1 = frame_of.get(m.t0.tobytes()), frame_of.get(m.t1.tobytes())
+            kb = frame_of.get(pose_before.tobytes())
+            if not cells.any() or None in (k0, k1, kb):
+                return out
+            r, c = np.nonzero(cells)
+            g = self.params.grid
+            ranges0, moving0 = rendered(k0)
+            centre = self._centres[r, c]
+            u, v = centre[:, 0].astype(int), centre[:, 1].astype(int)
+            block = np.stack([ranges0[rr * g:rr * g + g, cc * g:cc * g + g] for rr, cc in
+                              zip(r, c, strict=True)])
+            with np.errstate(invalid="ignore"):
+                straddles = block.max(axis=(1, 2)) > 1.1 * block.min(axis=(1, 2))
+            points = world_points(self._rays0[r, c], ranges0[v, u], m.t0)
+            moves, seen, behind_moving = [], [], []
+            for k, pose in ((k1, m.t1), (kb, pose_before)):
+                pixels, ok = self.camera.project((points - pose[:3, 3]) @ pose[:3, :3])
+                ok &= np.isfinite(ranges0[v, u])
+                moves.append(np.where(ok[:, None], pixels - centre, np.nan)[None])
+                ranges, moving = rendered(k)
+                pu = np.clip(np.rint(np.nan_to_num(pixels[:, 0])), 0, ranges.shape[1] - 1)
+                pv = np.clip(np.rint(np.nan_to_num(pixels[:, 1])), 0, ranges.shape[0] - 1)
+                pu, pv = pu.astype(int), pv.astype(int)
+                expected = np.linalg.norm(points - pose[:3, 3], axis=-1)
+                with np.errstate(invalid="ignore"):
+                    seen.append(ok & (np.abs(ranges[pv, pu] / expected - 1) < 0.05)
+                                & ~moving[pv, pu])
+                    behind_moving.append(ok & moving[pv, pu]
+                                         & (ranges[pv, pu] < 0.95 * expected))
+            true = span_explained(m.gray, m.curr, before, g, cells, measured, *moves)
+            rows.append(pd.DataFrame({
+                "scene": name, "moving": moving0[v, u], "explained": out[r, c],
+                "true explains": true[r, c], "seen now": seen[0], "seen in both": seen[0] & seen[1],
+                "behind a moving object now": behind_moving[0],
+                "straddles": straddles}))
+            return out
+
+        cls._span_explained = spy
+        try:
+            evaluate_sequence(seq.path, fm.Params(), ablation=False)
+        finally:
+            cls._span_explained = original
+    df = pd.concat(rows)
+    df["surface"] = np.where(df.moving, "moving object", "static")
+    static = df[~df.moving]
+    print("Seeds the two-span test tested (Farneback, Params()): share explained by the test, "
+          "by the true range alone, seen in the current frame, seen there and in the frame a span "
+          "before, straddling a depth edge (%):")
+    print((100 * df.groupby(["scene", "surface"]).mean(numeric_only=True).drop(
+        columns="moving")).round(0).join(df.groupby(["scene", "surface"]).size().rename(
+            "seeds")).to_string())
+    alone = static[~static["behind a moving object now"]]
+    unexplained = alone[~alone["true explains"]]
+    hidden = ~unexplained["seen now"]
+    before = unexplained["seen now"] & ~unexplained["seen in both"]
+    neither = unexplained["seen in both"] & ~unexplained.straddles
+    print(f"Static seeds not behind a moving object in the current frame: {len(alone)} of "
+          f"{len(static)}; the true range explains {100 * alone['true explains'].mean():.0f} %. "
+          f"Of the {len(unexplained)} it does not: {100 * hidden.mean():.0f} % hidden in the "
+          f"current frame behind a static surface, {100 * before.mean():.0f} % hidden only in "
+          f"the frame a span before, {100 * unexplained.straddles.mean():.0f} % straddling a "
+          f"depth edge, {100 * neither.mean():.0f} % seen in both and not straddling")
+
+
+def crossing_evidence(factors=(0.5, 1.0, 2.0), flows=("exact", "farneback")) -> None:
+    """How much of a crossing pedestrian two views show (``Params()``, every demo sequence with
+    one, streamed as the evaluation does, given each of ``flows``: ``"exact"``, the rendered
+    scene's, or ``"farneback"``): the share of its object-frames (the evaluation's: within 8 m)
+    with a scored cell above ``factors`` times the threshold in the pair's constraints as the
+    paper scores them (raw angles), then above the threshold after the pair's measurement
+    (significance, region tests), and detected."""
+    for flow in flows:
+        _crossing_evidence(factors, exact_flow=flow == "exact")
+
+
+def _crossing_evidence(factors, *, exact_flow: bool) -> None:
+    import pandas as pd
+
+    from fisheyemotion import detector as detector_module
+    from fisheyemotion.eval.evaluate import evaluate_sequence
+    from fisheyemotion.eval.report import scene_group
+
+    cls = detector_module.MotionDetector
+    original = cls._measure
+    p = fm.Params()
+    g, c = p.grid, (p.grid - 1) // 2
+    rows = []
+    for path in sorted(SEQUENCES.iterdir()):
+        seq = Sequence(path)
+        if not (seq.objects.category == "crossing").any():
+            continue
+        frame_of = {pose.tobytes(): k for k, pose in enumerate(seq.poses)}
+        measured: dict = {}
+
+        def spy(self, flow, t0, t1, *args, frame_of=frame_of, measured=measured, **kwargs):
+            m = original(self, flow, t0, t1, *args, **kwargs)
+            measured[frame_of.get(np.asarray(t1).tobytes())] = m
+            return m
+
+        cls._measure = spy
+        try:
+            result = evaluate_sequence(path, p, ablation=False, exact_flow=exact_flow)
+        finally:
+            cls._measure = original
+        objects = result.objects[result.objects.category == "crossing"]
+        for row in objects.itertuples():
+            m = measured.get(row.frame)
+            rcount, ccount = m.likelihood.shape
+            ids = seq.ids(row.frame - p.frame_gap)[c:rcount * g:g, c:ccount * g:g]
+            cells = (ids == row.id) & m.valid
+            raw = np.nanmax(m.res.likelihood[cells]) if cells.any() else 0.0
+            after = np.nanmax(m.likelihood[cells]) if cells.any() else 0.0
+            rows.append({"scenes": scene_group(path.name), "raw": raw,
+                         "after": after, "detected": row.detected})
+    df = pd.DataFrame(rows)
+    table = pd.DataFrame({
+        **{f"raw > {f:g} thr.": df.raw > f * p.threshold for f in factors},
+        "after the measurement": df.after > p.threshold, "detected": df.detected,
+        "scenes": df.scenes}).groupby("scenes")
+    print(f"Crossing pedestrians' object-frames, {'the exact' if exact_flow else 'Farneback'} "
+          "flow: a cell above the threshold (%), and their count:")
+    print((100 * table.mean()).round(0).join(table.size().rename("object-frames")).to_string())
 
 
 if __name__ == "__main__":
@@ -1409,6 +1577,7 @@ if __name__ == "__main__":
     contact_with_true_ranges()
     coverage_by_step()
     crossing_cells_by_elevation()
+    crossing_evidence()
     flow_follows_prior()
     photometric_search_draws()
     carry_share_draws()
