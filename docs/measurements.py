@@ -1378,6 +1378,13 @@ def span_draws(values=(0.0, 0.2, 0.35), draws: int = 4) -> None:
         _setting_draws("photometric_span", values, draws, flow=flow)
 
 
+def grow_draws(values=(0, 4), draws: int = 4) -> None:
+    """:func:`_setting_draws` of ``Params.grow`` (cells of growth to the flow boundary; 0: off),
+    with Farneback and with DIS medium."""
+    for flow in ("farneback", "dis"):
+        _setting_draws("grow", values, draws, flow=flow)
+
+
 def second_pass_flow_draws(values=("same", "dis-ultrafast", "dis-fast", "dis-medium"),
                            draws: int = 4) -> None:
     """:func:`_setting_draws` of ``Params.second_pass_flow``, with Farneback and with DIS."""

@@ -118,6 +118,9 @@ class _Measured(NamedTuple):
     # two-span test's (``params.photometric_span``).
     span_before: tuple[NDArray[np.float64], NDArray[np.uint8], NDArray[np.float64]] | None = None
     along_travel: NDArray[np.bool_] | None = None
+    # The scene model's ranges at the cells as the pair's prior read them (before this pair's
+    # update; None outside streams or while the model is empty): the growth's static prediction.
+    scene_ranges: NDArray[np.float64] | None = None
 
 
 class MotionDetector:
@@ -597,18 +600,19 @@ class MotionDetector:
         if p.min_texture > 0 and gray is not None:
             valid &= self._textured_cells(gray)
         static_flow = None  # before the scene model learns from this pair (the prior uses it)
-        decided = along_travel = span_before = None
+        decided = along_travel = span_before = scene_ranges = None
+        if stream and (p.grow > 0 or p.photometric_span > 0) and self.scene is not None \
+                and len(self.scene):
+            # the model as the pair's prior read it, before this pair's update
+            scene_ranges = self._scene_ranges_at_cells(t0)
         if stream and p.photometric_span > 0 and gray is not None and curr is not None:
             span_before = self._spans.get(t0.tobytes())
             self._spans[t1.tobytes()] = (t0, gray)
             self._spans.move_to_end(t1.tobytes())
             while len(self._spans) > p.frame_gap + 2:  # the pairs a decision may still need
                 self._spans.popitem(last=False)
-            if span_before is not None and self.scene is not None and len(self.scene):
-                # the model as the pair's prior read it, before this pair's update
-                span_before = (*span_before, self._scene_ranges_at_cells(t0))
-            else:
-                span_before = None
+            span_before = None if span_before is None or scene_ranges is None else (
+                *span_before, scene_ranges)
         # The pair's static prediction read the stream's scene model, not only the road and the
         # far field (before the model learns from this pair).
         informed = stream and self.scene is not None and len(self.scene) > 0
@@ -672,7 +676,7 @@ class MotionDetector:
                          self._prior_road(t0, t1) if p.grow > 0 else None, stream,
                          p.min_texture > 0 and curr is not None and bool(self._history)
                          and self._history[-1][0] is curr, informed, decided, own_flow,
-                         span_before, along_travel)
+                         span_before, along_travel, scene_ranges)
 
     def _decide(self, m: _Measured) -> Detection:
         """A measured pair's result: the photometric check's seeds, the growth and the
@@ -730,8 +734,10 @@ class MotionDetector:
         if p.second_pass > 0 and m.own_flow and gray is not None and curr is not None \
                 and not res.static_camera:
             likelihood = self._second_pass(m, seeds)
-        if p.grow > 0 and not res.static_camera:
-            likelihood = self._grown(likelihood, valid, cell_flow, t0, t1, m.prior_road)
+        if p.grow > 0 and m.informed and not res.static_camera:
+            # Only where the static prediction knows the structure beside the road: elsewhere
+            # a wall's residual is its own parallax, and regions would grow over it.
+            likelihood = self._grown(m, likelihood)
         if m.check_curr:  # for the stream's pair whose previous frame it will be
             self._textured_cells(curr, keep=True)
         self._check_road(t0)
@@ -895,21 +901,22 @@ class MotionDetector:
             return cached[1]
         return self._static_prior(t0, t1)[0]
 
-    def _grown(self, likelihood, valid, cell_flow, t0, t1, prior_road: Road) -> NDArray:
+    def _grown(self, m: _Measured, likelihood: NDArray[np.float64]) -> NDArray[np.float64]:
         """The likelihood with the cells that regions grow into (:mod:`fisheyemotion.grow`)
-        raised to just above the threshold (``prior_road``: the road the pair's prior used)."""
+        raised to just above the threshold. A cell's residual is its flow less the static
+        prediction of the pair's prior: the road it used (``m.prior_road``), the far field and
+        the scene model's ranges as the prior read them (``m.scene_ranges``; in ``stream()``
+        the next pair updates the model meanwhile). Streams only, once the model holds points
+        (``m.informed``)."""
         p = self.params
         with np.errstate(invalid="ignore"):
-            moving = valid & (likelihood > p.threshold)
+            moving = m.valid & (likelihood > p.threshold)
         if not moving.any():
             return likelihood
-        ranges = None
-        if self.scene is not None and len(self.scene):
-            ranges = self._scene_ranges_at_cells(t0)
-        targets, ok = static_scene_targets(self.camera, self._rays0, t0, t1, prior_road,
-                                           p.prior_distance, ranges)
-        residual = np.where(ok[..., None], self._centres + cell_flow - targets, np.nan)
-        grown = grow_regions(moving, residual, valid, steps=p.grow)
+        targets, ok = static_scene_targets(self.camera, self._rays0, m.t0, m.t1, m.prior_road,
+                                           p.prior_distance, m.scene_ranges)
+        residual = np.where(ok[..., None], self._centres + m.cell_flow - targets, np.nan)
+        grown = grow_regions(moving, residual, m.valid, steps=p.grow)
         raised = np.nextafter(p.threshold, np.inf)
         return np.where(grown & ~moving, np.fmax(likelihood, raised), likelihood)
 

@@ -16,10 +16,13 @@ stops the growth: the object's flow boundary is the region's boundary.
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ["grow_regions"]
+
+_SQUARE = np.ones((3, 3), np.uint8)
 
 
 def grow_regions(moving: NDArray[np.bool_], residual: NDArray[np.float64],
@@ -46,25 +49,50 @@ def grow_regions(moving: NDArray[np.bool_], residual: NDArray[np.float64],
     ndarray of bool, shape (rows, cols)
         ``moving`` and the cells grown into.
     """
-    from scipy import ndimage
-    from skimage.measure import label  # scikit-image/scipy on first use: `import fisheyemotion` stays light
-    labels = label(moving, connectivity=2)
-    n = int(labels.max())
-    if n == 0 or steps <= 0:
+    rows, cols = np.nonzero(moving)
+    if len(rows) == 0 or steps <= 0:
         return moving.copy()
+    # Only the cells within ``steps`` of a region can change: work on their bounding box.
+    r0, c0 = max(rows.min() - steps, 0), max(cols.min() - steps, 0)
+    r1, c1 = rows.max() + steps + 1, cols.max() + steps + 1
+    out = moving.copy()
+    out[r0:r1, c0:c1] = _grown(moving[r0:r1, c0:c1], residual[r0:r1, c0:c1],
+                               valid[r0:r1, c0:c1], steps, tolerance, relative)
+    return out
+
+
+def _grown(moving, residual, valid, steps, tolerance, relative) -> NDArray[np.bool_]:
+    """:func:`grow_regions` on a grid holding every cell it can change."""
+    # OpenCV's labelling (8-connected; no scipy or scikit-image import in a detection),
+    # renumbered in the raster order of each region's first cell: where two regions reach the
+    # same cell, the later one takes it.
+    n, labels = cv2.connectedComponents(np.ascontiguousarray(moving, dtype=np.uint8),
+                                        connectivity=8, ltype=cv2.CV_32S)
+    n -= 1
+    first = np.full(n + 1, labels.size)  # the first cell of each label, raster order
+    present, at = np.unique(labels, return_index=True)
+    first[present] = at
+    order = np.empty(n + 1, np.intp)
+    order[0] = 0
+    order[1 + np.argsort(first[1:], kind="stable")] = np.arange(1, n + 1)
+    labels = order[labels]
     res = np.nan_to_num(residual, nan=np.inf)
     flat = labels.ravel()
     count = np.maximum(np.bincount(flat, minlength=n + 1), 1)
-    finite = np.isfinite(res).all(axis=-1).ravel() & (flat > 0)
+    known = np.isfinite(res).all(axis=-1)
+    finite = known.ravel() & (flat > 0)
     mean = np.zeros((n + 1, 2))
     for i in range(2):
         mean[:, i] = np.bincount(flat[finite], weights=res.reshape(-1, 2)[finite, i],
                                  minlength=n + 1) / count
     norm = np.linalg.norm(mean, axis=-1)
     grown = labels.copy()
-    open_ = valid & np.isfinite(res).all(axis=-1)
+    open_ = valid & known
     for _ in range(steps):
-        near = ndimage.grey_dilation(grown, size=(3, 3), mode="constant", cval=0)
+        # The largest label among each cell's 8 neighbours and itself (0 beyond the grid):
+        # labels are exact in float32 up to 2**24.
+        near = cv2.dilate(grown.astype(np.float32), _SQUARE, borderType=cv2.BORDER_CONSTANT,
+                          borderValue=0).astype(np.intp)
         cand = (grown == 0) & (near > 0) & open_
         if not cand.any():
             break

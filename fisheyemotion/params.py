@@ -184,7 +184,11 @@ class Params:
     grow : int
         Cells a detected region may grow by into neighbours whose residual flow (measured minus
         the static scene's) is like the region's (:mod:`fisheyemotion.grow`): the object's flow
-        boundary becomes the region's. 0 disables it.
+        boundary becomes the region's, and a small seeded region reaches ``min_area``. Streams
+        only, once the static-scene model holds points (a single pair's static prediction knows
+        only the road and the far field: a wall's residual would be its own parallax). 0
+        disables it (``Params.paper()``; ``data/params/no_growth.yaml``). Chosen on the tuning
+        street and the open road (docs/evaluation.md, *Growth by the residual flow*).
     extent_reach : float
         Each region of the mask grown to its object's extent in the current frame, by a marker
         watershed on that frame (:mod:`fisheyemotion.extent`), at most this share of the
@@ -387,7 +391,7 @@ class Params:
     flow_sigma: float = 0.25
     position_sigma: float = 0.002
     ground_contact: bool = True
-    grow: int = 0
+    grow: int = 4
     extent_reach: float = 0.5
     extent_static: float = 0.1
     extent_residual: bool = True

@@ -40,6 +40,7 @@ CASES = {
                           "photometric_span: expected a finite number"),
     "no_pixel_carry.yaml": ("carry_share", 0.0, 0.6, 0.0, (-0.1, 1.5, float("nan"), "a"),
                             "carry_share: expected a number in"),
+    "no_growth.yaml": ("grow", 0, 4, 0, (-1, 2.0, True), "grow: expected an integer >= 0"),
 }
 
 
