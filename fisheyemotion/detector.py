@@ -601,11 +601,11 @@ class MotionDetector:
             valid &= self._textured_cells(gray)
         static_flow = None  # before the scene model learns from this pair (the prior uses it)
         decided = along_travel = span_before = scene_ranges = None
-        if stream and (p.grow > 0 or p.photometric_span > 0) and self.scene is not None \
-                and len(self.scene):
+        spans = stream and p.photometric_span > 0 and gray is not None and curr is not None
+        if stream and (p.grow > 0 or spans) and self.scene is not None and len(self.scene):
             # the model as the pair's prior read it, before this pair's update
             scene_ranges = self._scene_ranges_at_cells(t0)
-        if stream and p.photometric_span > 0 and gray is not None and curr is not None:
+        if spans:
             span_before = self._spans.get(t0.tobytes())
             self._spans[t1.tobytes()] = (t0, gray)
             self._spans.move_to_end(t1.tobytes())
