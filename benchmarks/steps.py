@@ -45,7 +45,7 @@ ROUNDS = 100
 #: Methods of MotionDetector, then functions as the detector module calls them.
 METHODS = ("_measure", "_decide", "_assemble", "_explain_standing", "_textured_cells",
            "_supported_off_arc", "_grown", "_temporal_filter", "_static_prior", "_one_flow",
-           "_second_pass", "_receding", "_span_explained", "_grown")
+           "_second_pass", "_receding", "_span_explained")
 FUNCTIONS = ("constraints", "cell_sigma", "triangulate_range", "grid_upsample", "grow_to_extent",
              "static_explained", "cell_residual", "grid_transfer", "pixel_transfer",
              "segment_cells", "grid_average", "warp_by", "second_flow", "better_explained",
@@ -129,19 +129,23 @@ def _stream(settings, timed, totals) -> None:
     importlib.import_module("skimage.segmentation")
     importlib.import_module("skimage.morphology")
     total, count = 0.0, 0
+    steps: collections.defaultdict[str, float] = collections.defaultdict(float)
     for round_ in range(1 + ROUNDS // 10):
         det = fm.MotionDetector(cam, params=settings, roi=renderer.roi())
         for k in range(6):
             det.apply(grays[k], frames[k].pose)
         if round_ == 0:  # a first round out of the figures
             continue
-        if count == 0:
-            totals.clear()
+        before = dict(totals)  # only the timed frames' steps count, not the six before them
         start = time.perf_counter()
         for k in range(6, 18):
             det.apply(grays[k], frames[k].pose)
         total += time.perf_counter() - start
         count += 12
+        for name, seconds in totals.items():
+            steps[name] += seconds - before.get(name, 0.0)
+    totals.clear()
+    totals.update(steps)
     totals["flow method"] = totals.pop("__call__")
     print(f"stream: apply {1000 * total / count:.2f} ms a frame, of which the flow method "
           f"{1000 * totals['flow method'] / count:.2f} ({count} frames)")
