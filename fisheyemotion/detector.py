@@ -46,7 +46,7 @@ from .flow import (
 from .frames import to_gray
 from .ground import GroundEstimator, provisional_road
 from .ground_contact import standing_regions
-from .grow import grow_regions
+from .grow import grow_regions, reach
 from .params import Params
 from .photometric import (
     SEARCH_STEP,
@@ -911,11 +911,16 @@ class MotionDetector:
         p = self.params
         with np.errstate(invalid="ignore"):
             moving = m.valid & (likelihood > p.threshold)
-        if not moving.any():
+        box = reach(moving, p.grow)
+        if box is None:
             return likelihood
-        targets, ok = static_scene_targets(self.camera, self._rays0, m.t0, m.t1, m.prior_road,
-                                           p.prior_distance, m.scene_ranges)
-        residual = np.where(ok[..., None], self._centres + m.cell_flow - targets, np.nan)
+        # The residual where the growth reads it: the cells within its reach of a region.
+        targets, ok = static_scene_targets(
+            self.camera, self._rays0[box], m.t0, m.t1, m.prior_road, p.prior_distance,
+            None if m.scene_ranges is None else m.scene_ranges[box])
+        residual = np.full(m.cell_flow.shape, np.nan)
+        residual[box] = np.where(ok[..., None], self._centres[box] + m.cell_flow[box] - targets,
+                                 np.nan)
         grown = grow_regions(moving, residual, m.valid, steps=p.grow)
         raised = np.nextafter(p.threshold, np.inf)
         return np.where(grown & ~moving, np.fmax(likelihood, raised), likelihood)

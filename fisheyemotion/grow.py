@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["grow_regions"]
+__all__ = ["grow_regions", "reach"]
 
 _SQUARE = np.ones((3, 3), np.uint8)
 
@@ -49,16 +49,22 @@ def grow_regions(moving: NDArray[np.bool_], residual: NDArray[np.float64],
     ndarray of bool, shape (rows, cols)
         ``moving`` and the cells grown into.
     """
+    box = reach(moving, steps)
+    out = moving.copy()
+    if box is not None:  # only the cells within ``steps`` of a region can change
+        out[box] = _grown(moving[box], residual[box], valid[box], steps, tolerance, relative)
+    return out
+
+
+def reach(moving: NDArray[np.bool_], steps: int) -> tuple[slice, slice] | None:
+    """The bounding box of the cells within ``steps`` of a cell of ``moving`` (clipped to the
+    grid), as slices; None where nothing can grow (no region, no step). Only there does
+    :func:`grow_regions` read the residual."""
     rows, cols = np.nonzero(moving)
     if len(rows) == 0 or steps <= 0:
-        return moving.copy()
-    # Only the cells within ``steps`` of a region can change: work on their bounding box.
-    r0, c0 = max(rows.min() - steps, 0), max(cols.min() - steps, 0)
-    r1, c1 = rows.max() + steps + 1, cols.max() + steps + 1
-    out = moving.copy()
-    out[r0:r1, c0:c1] = _grown(moving[r0:r1, c0:c1], residual[r0:r1, c0:c1],
-                               valid[r0:r1, c0:c1], steps, tolerance, relative)
-    return out
+        return None
+    return (slice(max(rows.min() - steps, 0), rows.max() + steps + 1),
+            slice(max(cols.min() - steps, 0), cols.max() + steps + 1))
 
 
 def _grown(moving, residual, valid, steps, tolerance, relative) -> NDArray[np.bool_]:
