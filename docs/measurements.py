@@ -1430,7 +1430,7 @@ def span_at_true_ranges(names=("street_kb", "street_ds", "street_heldout_kb",
 
         def spy(self, m, seeds, measured, name=name, frame_of=frame_of, rendered=rendered):
             out = original(self, m, seeds, measured)
-            pose_before, before, model = m.span_before
+            (pose_before, before), model = m.span_before, m.scene_ranges
             cells = seeds & np.isfinite(model)
             if m.along_travel is not None:
                 cells &= ~m.along_travel

@@ -112,14 +112,14 @@ class _Measured(NamedTuple):
     informed: bool  # the static prediction read the scene model's points (the growth's residual)
     decided: NDArray[np.bool_] | None  # cells a region test explained (ground contact) or raised
     own_flow: bool  # the flow is the detector's own (its flow method may measure again)
-    # The span before the pair's (its previous frame's pose and gray image, and the scene
-    # model's ranges at the cells before this pair's update) and the cells whose motion along
-    # the travel no number of views tells from a static point (floating, receding): the
-    # two-span test's (``params.photometric_span``).
-    span_before: tuple[NDArray[np.float64], NDArray[np.uint8], NDArray[np.float64]] | None = None
+    # The span before the pair's (its previous frame's pose and gray image; None without
+    # ``scene_ranges``) and the cells whose motion along the travel no number of views tells
+    # from a static point (floating, receding): the two-span test's (``params.photometric_span``).
+    span_before: tuple[NDArray[np.float64], NDArray[np.uint8]] | None = None
     along_travel: NDArray[np.bool_] | None = None
     # The scene model's ranges at the cells as the pair's prior read them (before this pair's
-    # update; None outside streams or while the model is empty): the growth's static prediction.
+    # update; None outside streams or while the model is empty): the static prediction of the
+    # growth and of the two-span test's candidates.
     scene_ranges: NDArray[np.float64] | None = None
 
 
@@ -611,8 +611,8 @@ class MotionDetector:
             self._spans.move_to_end(t1.tobytes())
             while len(self._spans) > p.frame_gap + 2:  # the pairs a decision may still need
                 self._spans.popitem(last=False)
-            span_before = None if span_before is None or scene_ranges is None else (
-                *span_before, scene_ranges)
+            if scene_ranges is None:
+                span_before = None
         # The pair's static prediction read the stream's scene model, not only the road and the
         # far field (before the model learns from this pair).
         informed = stream and self.scene is not None and len(self.scene) > 0
@@ -797,7 +797,8 @@ class MotionDetector:
         not the cells whose motion along the travel the region tests found (``m.along_travel``),
         which no number of views tells from a static point."""
         p = self.params
-        pose_before, before, model = m.span_before
+        pose_before, before = m.span_before
+        model = m.scene_ranges
         cells = seeds & np.isfinite(model)
         if m.along_travel is not None:
             cells &= ~m.along_travel
