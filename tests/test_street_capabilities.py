@@ -1178,8 +1178,9 @@ def test_two_spans_explain_a_parked_car_a_wrong_range_away_not_a_pedestrian_walk
     measured = cell_residual(gray[6], gray[9], uniform, g, cars | walker) + 2.0
 
     def explained(spread):
-        m = SimpleNamespace(span_before=(frames[3].pose, gray[3], model), along_travel=None,
-                            t0=t0, t1=t1, road=fm.Road(), gray=gray[6], curr=gray[9])
+        m = SimpleNamespace(span_before=(frames[3].pose, gray[3]), scene_ranges=model,
+                            along_travel=None, t0=t0, t1=t1, road=fm.Road(), gray=gray[6],
+                            curr=gray[9])
         det.params = det.params.replace(photometric_span=spread)
         return det._span_explained(m, cars | walker, measured)
 
