@@ -1329,22 +1329,40 @@ def _setting_draws(name: str, values, draws: int, *, flow: str = "farneback") ->
     poses and ``draws`` negligible perturbations (:func:`_draw_groups`): each scene group's
     detection and coverage per category, false-positive frames, static pixels flagged and IoU,
     the runs' means (per cent), and the false-positive frames' SD."""
+    for value in values:
+        shown = value if isinstance(value, str) else f"{value:g}"
+        _params_draws(f"{name} {shown}", {name: value}, draws, flow=flow)
+
+
+def _params_draws(title: str, changes: dict, draws: int, *, flow: str = "farneback") -> None:
+    """``Params(**changes)`` over every demo sequence (``flow``) as :func:`_setting_draws`
+    runs one value: the runs' means per scene group and category, and the false-positive
+    frames' SD, printed under ``title``."""
     import pandas as pd
 
     columns = ["crossing det.", "crossing cov.", "preceding det.", "preceding cov.",
-               "approaching det.", "approaching cov.", "overtaking cov.", "static cov.",
-               "FP frames", "static flagged", "IoU"]
+               "approaching det.", "approaching cov.", "overtaking det.", "overtaking cov.",
+               "static cov.", "FP frames", "static flagged", "IoU"]
     with pd.option_context("display.width", 250, "display.max_columns", 40):
-        for value in values:
-            _, groups = _draw_groups(fm.Params(**{name: value}, flow=flow), draws)
-            numbers = [g[[c for c in columns if c in g]].astype(float) for g in groups]
-            mean = sum(numbers) / len(numbers)
-            sd = np.sqrt(sum((n - mean) ** 2 for n in numbers) / (len(numbers) - 1))
-            shown = value if isinstance(value, str) else f"{value:g}"
-            print(f"{name} {shown}, {flow}, {len(groups)} runs (means, per cent):")
-            print((100 * mean).round(1).to_string())
-            print("false-positive frames SD: "
-                  + ", ".join(f"{s} {100 * v:.1f}" for s, v in sd["FP frames"].items()))
+        _, groups = _draw_groups(fm.Params(**changes, flow=flow), draws)
+        numbers = [g[[c for c in columns if c in g]].astype(float) for g in groups]
+        mean = sum(numbers) / len(numbers)
+        sd = np.sqrt(sum((n - mean) ** 2 for n in numbers) / (len(numbers) - 1))
+        print(f"{title}, {flow}, {len(groups)} runs (means, per cent):")
+        print((100 * mean).round(1).to_string())
+        print("false-positive frames SD: "
+              + ", ".join(f"{s} {100 * v:.1f}" for s, v in sd["FP frames"].items()))
+
+
+def confirm_draws(settings=({}, {"confirm_reach": 8}, {"confirm_reach": 8, "threshold": 0.003}),
+                  draws: int = 4, flows=("farneback", "dis")) -> None:
+    """:func:`_params_draws` of region confirmation by the frame before
+    (``Params.confirm_reach``, cells; :mod:`fisheyemotion.confirm`) and the likelihood
+    threshold with it: each of ``settings`` (``Params`` changes) with each of ``flows``."""
+    for flow in flows:
+        for changes in settings:
+            title = ", ".join(f"{k} {v:g}" for k, v in changes.items()) or "defaults"
+            _params_draws(title, changes, draws, flow=flow)
 
 
 def carry_share_draws(shares=(0.0, 0.4, 0.5, 0.6), draws: int = 4) -> None:
@@ -1400,14 +1418,15 @@ def span_at_true_ranges(names=("street_kb", "street_ds", "street_heldout_kb",
     frame), explained by the test or not, then explained by the same test with the single
     candidate at the renderer's true range of the cell centre, and whether that true point is
     seen in the pair's current frame and in the frame a span before (the range seen where it
-    projects within 5 % of its own, no moving object there; or behind a moving object) and whether the cell straddles a
-    depth edge (its pixels' true ranges more than 10 % apart). Static seeds the true range does
-    not explain are those a rigidly moved cell cannot explain, whatever range the model held.
+    projects within 5 % of its own, no moving object there; or behind a moving object) and
+    whether the cell straddles a depth edge (its pixels' true ranges more than 10 % apart).
+    Static seeds the true range does not explain are those a rigidly moved cell cannot
+    explain, whatever range the model held.
     ``names``: the sequences."""
     import pandas as pd
+    from fisheyemotion.eval.evaluate import evaluate_sequence
 
     from fisheyemotion import detector as detector_module
-    from fisheyemotion.eval.evaluate import evaluate_sequence
     from fisheyemotion.photometric import span_explained
     from fisheyemotion.static_scene import world_points
 
@@ -1511,10 +1530,10 @@ def crossing_evidence(factors=(0.5, 1.0, 2.0), flows=("exact", "farneback")) -> 
 
 def _crossing_evidence(factors, *, exact_flow: bool) -> None:
     import pandas as pd
-
-    from fisheyemotion import detector as detector_module
     from fisheyemotion.eval.evaluate import evaluate_sequence
     from fisheyemotion.eval.report import scene_group
+
+    from fisheyemotion import detector as detector_module
 
     cls = detector_module.MotionDetector
     original = cls._measure

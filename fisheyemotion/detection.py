@@ -90,8 +90,9 @@ class Detection:
     cell_mask : ndarray of uint8, shape (H, W)
         255 on the regions' cells that the constraints flagged: without the cells the closing
         over small gaps filled in (``Params.region_gap``) and before the growth to the objects'
-        extent (``Params.extent_reach``; :mod:`fisheyemotion.extent`). The same as ``mask``
-        without both. Pose estimation and refinement exclude it.
+        extent (``Params.extent_reach``; :mod:`fisheyemotion.extent`), with the regions not yet
+        confirmed by the frame before (``Params.confirm_reach``). The same as ``mask`` without
+        the three. Pose estimation and refinement exclude it.
     """
 
     likelihood: NDArray[np.float32]

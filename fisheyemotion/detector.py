@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 from . import _warmup
 from .calib.base import CameraModel
 from .calib.transforms import check_rigid
+from .confirm import confirmed_regions
 from .constraints import ConstraintResult, constraints, nearest_static_ray
 from .detection import CONSTRAINT_NAMES, Detection, Grid, LazyMaps
 from .egomotion import PoseTracker
@@ -206,6 +207,7 @@ class MotionDetector:
         self._cell_samples: NDArray[np.intp] | None = None
         self._static_flow: tuple[bytes, NDArray[np.float32]] | None = None
         self._temporal: tuple[NDArray, NDArray] | None = None
+        self._candidates: NDArray[np.bool_] | None = None  # the last result's regions' cells
         self._history: deque[tuple[NDArray[np.uint8], NDArray[np.float64]]] = deque(
             maxlen=self.params.frame_gap)
         self._bootstrapped = False
@@ -440,6 +442,7 @@ class MotionDetector:
         self._spans.clear()
         self._ranges.clear()
         self._temporal = None
+        self._candidates = None
         self._tracker, self.last_pose = None, None
         self._taken = 0
         self._masks.clear()
@@ -1159,6 +1162,15 @@ class MotionDetector:
             # which the pose step need not leave out.
             with np.errstate(invalid="ignore"):
                 cells_now = on_pixels(cell_mask & (cell_likelihood > p.threshold))
+        flagged_cells = cell_mask
+        if stream and p.confirm_reach > 0:
+            # Reported only where the previous result had a region (its candidates: the test
+            # does not feed on itself); the pose step still leaves every candidate out.
+            labels, regions = confirmed_regions(labels, regions, self._candidates,
+                                                p.confirm_reach)
+            self._candidates = cell_mask
+            cell_mask = labels > 0
+            mask = on_pixels(cell_mask)
         if p.extent_reach > 0 and curr is not None and regions:
             # The mask of the frame the user passed last, grown on that frame's image.
             residual = None
@@ -1171,7 +1183,7 @@ class MotionDetector:
                                            residual=residual, inside=self._inside_u8,
                                            residual_decides=p.extent_residual and informed)
         if not self._road_warned and self.road.known and self.ground is None \
-                and cell_mask[self._cell_valid].mean() > FLOODED:
+                and flagged_cells[self._cell_valid].mean() > FLOODED:
             self._road_warned = True
             warnings.warn(f"detection: more than {FLOODED:.0%} of the image is flagged moving; "
                           "are the poses world_from_cam and the road right for this world "

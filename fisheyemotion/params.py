@@ -276,6 +276,10 @@ class Params:
     persistence : int
         Streams only: a region is reported only once some of its cells have been moving in this
         many consecutive detections (carried by the flow). 1 (default) reports at once.
+    confirm_reach : int
+        Cells. Streams only: a region is reported only where the stream's previous result had a
+        region (reported or not) within this many cells (:mod:`fisheyemotion.confirm`). 0
+        (default): off.
     visibility_check : bool
         Cells whose static-scene point (the ego prior's prediction: the road, or
         ``prior_distance`` above the horizon) leaves the current view -- outside the image, the
@@ -420,6 +424,7 @@ class Params:
     min_texture: float = 2.0
     temporal_decay: float = 0.3
     persistence: int = 1
+    confirm_reach: int = 0
     visibility_check: bool = False
     min_parallax: float = 0.0
     fb_check: bool = False
@@ -484,7 +489,7 @@ class Params:
         for name, low in (("grid", 1), ("min_area", 0), ("frame_gap", 1), ("persistence", 1),
                           ("scene_memory", 1), ("grow", 0), ("region_gap", 0),
                           ("antiparallel_seeds", 1), ("second_pass", 0),
-                          ("contact_columns", 0)):
+                          ("contact_columns", 0), ("confirm_reach", 0)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {_short(v)}")

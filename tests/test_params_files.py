@@ -68,3 +68,8 @@ def test_the_fewer_false_alarms_file_asks_two_seeds_of_anti_parallel_led_regions
     for bad in (0, 1.5, True):
         with pytest.raises(ValueError, match="antiparallel_seeds: expected an integer >= 1"):
             fm.Params(antiparallel_seeds=bad)
+
+
+def test_the_confirmed_file_asks_a_region_of_the_frame_before_within_eight_cells():
+    assert fm.Params.load(FOLDER / "confirmed.yaml") == fm.Params(confirm_reach=8)
+    assert fm.Params().confirm_reach == 0 and fm.Params.paper().confirm_reach == 0

@@ -215,3 +215,22 @@ def test_three_views_in_a_stream_equal_apply_and_change_its_results(frames):
     off = _applied(fm.MotionDetector(CAM, None, PARAMS), items)
     assert any(not np.array_equal(a.likelihood, b.likelihood)
                for (a, _), (b, _) in zip(on, off, strict=True) if a is not None)
+
+
+def test_confirmation_in_a_stream_equals_apply_and_only_removes_regions(frames):
+    """``confirm_reach`` reads the last decided result's regions: stream(), which decides beside
+    the next pair's flow, gives apply()'s results with it; every mask it reports is within the
+    unconfirmed one (the likelihood is the same), and the pose step's cells are the same."""
+    params = PARAMS.replace(confirm_reach=1)
+    items = [(f.image, f.pose) for f in frames]
+    on = _applied(fm.MotionDetector(CAM, None, params), items)
+    _assert_same(on, _streamed(fm.MotionDetector(CAM, None, params), items))
+    off = _applied(fm.MotionDetector(CAM, None, PARAMS), items)
+    removed = 0
+    for (a, _), (b, _) in zip(on, off, strict=True):
+        if a is not None:
+            np.testing.assert_array_equal(a.likelihood, b.likelihood)
+            np.testing.assert_array_equal(a.cell_mask, b.cell_mask)
+            assert not (a.mask > b.mask).any()
+            removed += int((a.mask < b.mask).sum())
+    assert removed > 0  # here: two frames' regions with none near them in the frame before
