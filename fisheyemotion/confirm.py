@@ -21,6 +21,7 @@ a frame (suppressing that result too cost the open road's preceding, approaching
 static-ego objects one object-frame of 13 each, and removed no false-positive frame). A single
 pair (:func:`fisheyemotion.detect`) is not confirmed.
 """
+
 from __future__ import annotations
 
 import cv2
@@ -57,9 +58,7 @@ def confirmed_regions(labels: NDArray[np.int32], regions: list[Region],
     regions : list of Region
         The confirmed regions, in their order, with their new labels.
     """
-    if before is None:
-        return labels, regions
-    if not regions:
+    if before is None or not regions:
         return labels, regions
     if before.shape != labels.shape:
         raise ValueError(f"before: expected cells of shape {labels.shape}, got {before.shape}")
