@@ -661,12 +661,13 @@ class MotionDetector:
                     raised = likelihood > before
                 decided = raised if decided is None else decided | raised
                 along_travel = raised if along_travel is None else along_travel | raised
+            pair_only = likelihood  # the pair's own evidence, which the scene model learns from
             if three:
                 likelihood = self._three_views(likelihood, valid & conditioned, ranges,
                                                range_error, cell_flow, gray, curr, t0, t1)
             if keep_scene:
                 with np.errstate(invalid="ignore"):
-                    static = valid & (likelihood < p.threshold)
+                    static = valid & (pair_only < p.threshold)
                     if contact:  # static by its arc, but its range or the model's is wrong
                         static &= ~doubted
                 stored = np.where(conditioned, ranges, np.nan)

@@ -235,8 +235,9 @@ class Params:
         Streams only, 0 (off) by default: flow-error sigmas by which a cell's range may disagree
         with the range the previous pair triangulated for the static point that landed in it
         (:mod:`fisheyemotion.range_consistency`: three views of a static point agree, of a point
-        moving along its epipolar arc do not); a cell at this many reaches the threshold.
-        Measured, not the default yet (``docs/evaluation.md``, *Three views*).
+        moving along its epipolar arc do not); a cell at this many reaches the threshold. The
+        scene model still stores the cells it alone raises. Measured, not the default
+        (``docs/evaluation.md``, *Three views*).
     scene_sweep : float
         Streams only, 0 (off) by default: grey levels. A cell about to enter the scene model
         whose measured flow explains the frames worse than this (mean absolute residual) is

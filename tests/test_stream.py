@@ -217,6 +217,22 @@ def test_three_views_in_a_stream_equal_apply_and_change_its_results(frames):
                for (a, _), (b, _) in zip(on, off, strict=True) if a is not None)
 
 
+def test_three_views_leave_the_scene_model_as_the_pairs_alone_build_it(frames):
+    """A cell the three-view test alone raises is still stored as static (0.8.20): the scene
+    model, and so every pair's prior and flow, is the one the stream builds without the test."""
+    items = [(f.image, f.pose) for f in frames]
+    models = []
+    for params in (PARAMS, PARAMS.replace(range_consistency=0.5)):
+        det = fm.MotionDetector(CAM, None, params)
+        results = _applied(det, items)
+        models.append((det.scene.points(), [r.flow for r, _ in results if r is not None]))
+    (points_off, flows_off), (points_on, flows_on) = models
+    assert len(points_off) > 0
+    np.testing.assert_array_equal(points_on, points_off)
+    for a, b in zip(flows_on, flows_off, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_confirmation_in_a_stream_equals_apply_and_only_removes_regions(frames):
     """``confirm_reach`` reads the last decided result's regions: stream(), which decides beside
     the next pair's flow, gives apply()'s results with it; every mask it reports is within the
