@@ -73,3 +73,9 @@ def test_the_fewer_false_alarms_file_asks_two_seeds_of_anti_parallel_led_regions
 def test_the_confirmed_file_asks_a_region_of_the_frame_before_within_eight_cells():
     assert fm.Params.load(FOLDER / "confirmed.yaml") == fm.Params(confirm_reach=8)
     assert fm.Params().confirm_reach == 0 and fm.Params.paper().confirm_reach == 0
+
+
+def test_the_confirmed_three_views_file_adds_the_three_view_test_at_one_and_a_half_sigmas():
+    assert fm.Params.load(FOLDER / "confirmed_three_views.yaml") == fm.Params(
+        confirm_reach=8, range_consistency=1.5)
+    assert fm.Params().range_consistency == 0
