@@ -49,7 +49,8 @@ METHODS = ("_measure", "_decide", "_assemble", "_explain_standing", "_textured_c
 FUNCTIONS = ("constraints", "cell_sigma", "triangulate_range", "grid_upsample", "grow_to_extent",
              "static_explained", "cell_residual", "grid_transfer", "pixel_transfer",
              "segment_cells", "grid_average", "warp_by", "second_flow", "better_explained",
-             "receding_cells", "edge_explained", "hidden_cells", "confirmed_regions")
+             "receding_cells", "edge_explained", "hidden_cells", "confirmed_regions",
+             "road_explained", "trim_regions")
 
 
 def _pair(which: str):

@@ -1365,6 +1365,13 @@ def confirm_draws(settings=({}, {"confirm_reach": 8}, {"confirm_reach": 8, "thre
             _params_draws(title, changes, draws, flow=flow)
 
 
+def road_spill_draws(values=(0.0, 15.0), draws: int = 4, flows=("farneback", "dis")) -> None:
+    """:func:`_setting_draws` of ``Params.road_spill`` (grey levels; 0: no trim;
+    :mod:`fisheyemotion.spill`) with each of ``flows``."""
+    for flow in flows:
+        _setting_draws("road_spill", values, draws, flow=flow)
+
+
 def carry_share_draws(shares=(0.0, 0.4, 0.5, 0.6), draws: int = 4) -> None:
     """:func:`_setting_draws` of ``Params.carry_share``."""
     _setting_draws("carry_share", shares, draws)

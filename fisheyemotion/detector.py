@@ -72,6 +72,7 @@ from .road import Road
 from .second_pass import SIZE_STEP, BoxFlows, better_explained, near_cells, second_flow
 from .segment import LED, grown_from, segment_cells
 from .significance import cell_sigma, pixel_angle, pose_sigma
+from .spill import road_explained, trim_regions
 from .static_scene import TRIANGULATION_PARALLAX, StaticScene, triangulate_range, world_points
 
 #: Share of the image flagged moving above which a given road (or the poses) is suspect.
@@ -747,7 +748,7 @@ class MotionDetector:
         self._check_road(t0)
         return self._assemble(flow, cell_flow, res, likelihood, valid, stream=m.stream,
                               seeds=seeds, curr=curr, static_flow=static_flow,
-                              informed=m.informed)
+                              informed=m.informed, prev=gray, poses=(t0, t1), road=m.road)
 
     def _second_pass(self, m: _Measured, seeds: NDArray[np.bool_] | None) -> NDArray[np.float64]:
         """The pair's likelihood where a second flow pass (:mod:`fisheyemotion.second_pass`)
@@ -1110,7 +1111,9 @@ class MotionDetector:
                   stream: bool = False, seeds: NDArray[np.bool_] | None = None,
                   curr: NDArray[np.uint8] | None = None,
                   static_flow: NDArray[np.float32] | None = None,
-                  informed: bool = False) -> Detection:
+                  informed: bool = False, prev: NDArray[np.uint8] | None = None,
+                  poses: tuple[NDArray, NDArray] | None = None,
+                  road: Road | None = None) -> Detection:
         p, (w, h) = self.params, self.size
         measured = np.where(valid, likelihood, np.nan)
         # The measurement lives on the previous frame's cells; the result belongs to the current
@@ -1178,11 +1181,27 @@ class MotionDetector:
             if static_flow is not None:  # the cells' own motion, on the current frame's cells
                 at = self._at_cell_centres(static_flow)
                 residual = now(np.where(valid[..., None], cell_flow - at, np.nan))
-            mask, regions = grow_to_extent(labels, regions, p.grid, curr, likelihood,
-                                           threshold=p.threshold, reach=p.extent_reach,
-                                           static_fraction=p.extent_static,
-                                           residual=residual, inside=self._inside_u8,
-                                           residual_decides=p.extent_residual and informed)
+            mask, regions, pixel_labels = grow_to_extent(
+                labels, regions, p.grid, curr, likelihood, threshold=p.threshold,
+                reach=p.extent_reach, static_fraction=p.extent_static, residual=residual,
+                inside=self._inside_u8, residual_decides=p.extent_residual and informed,
+                with_labels=True)
+        else:
+            pixel_labels = None
+        known = road is not None and (road.known or res.static_camera)
+        if p.road_spill > 0 and regions and known and curr is not None and prev is not None \
+                and poses is not None:
+            # The flow's spill onto the road (or, the camera still, onto anything static),
+            # where the images show it.
+            if pixel_labels is None:
+                pixel_labels = np.where(mask > 0, grid_upsample(labels, p.grid, w, h), 0)
+            carried = carrier.reshape(-1, 2)[np.maximum(source, 0)].reshape(carrier.shape)
+            carried[source < 0] = np.nan
+            spill = road_explained(prev, curr, mask > 0, self.camera, *poses, road,
+                                  grid_upsample(carried, p.grid, w, h), window=p.grid,
+                                  tolerance=p.road_spill, still=res.static_camera)
+            if spill.any():
+                mask, regions = trim_regions(pixel_labels, regions, spill, grid=p.grid)
         if not self._road_warned and self.road.known and self.ground is None \
                 and flagged_cells[self._cell_valid].mean() > FLOODED:
             self._road_warned = True

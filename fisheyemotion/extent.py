@@ -63,8 +63,9 @@ def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
                    threshold: float, reach: float, static_fraction: float,
                    residual: NDArray[np.float64] | None = None,
                    inside: NDArray[np.uint8] | None = None, min_reach: int = 8,
-                   residual_decides: bool = False
-                   ) -> tuple[NDArray[np.uint8], list[Region]]:
+                   residual_decides: bool = False, with_labels: bool = False
+                   ) -> tuple[NDArray[np.uint8], list[Region]] | tuple[
+                       NDArray[np.uint8], list[Region], NDArray[np.int32]]:
     """The mask of ``regions`` grown to their objects' extent in ``gray`` (module doc).
 
     Parameters
@@ -97,6 +98,8 @@ def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
         Where a cell's ``residual`` is known it alone marks the background (slower than
         ``SLOWER`` times the region's), not ``static_fraction``: for residuals measured against
         a static prediction that knows the structure beside the road (a stream's scene model).
+    with_labels : bool
+        Also return the grown regions' pixels by label.
 
     Returns
     -------
@@ -105,11 +108,15 @@ def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
     regions : list of Region
         The same regions (label, mean likelihood of their cells) with the box, area (pixels)
         and centroid of their grown pixels, largest first.
+    pixel_labels : ndarray of int32, shape (H, W)
+        With ``with_labels``: each grown pixel's region label, 0 elsewhere (where two regions
+        grew over one pixel, the later one's in ``regions``' order).
     """
     h, w = gray.shape
     mask = np.zeros((h, w), np.uint8)
+    pixel_labels = np.zeros((h, w), np.int32) if with_labels else None
     if not regions:
-        return mask, []
+        return (mask, [], pixel_labels) if with_labels else (mask, [])
     smooth = cv2.GaussianBlur(gray, (0, 0), SMOOTHING)
     static_below = np.float32(static_fraction * threshold)
     if residual is not None:
@@ -151,6 +158,8 @@ def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
             pixels &= inside[y0:y1, x0:x1] > 0
         binary = pixels.view(np.uint8)
         mask[y0:y1, x0:x1] |= binary * np.uint8(255)
+        if pixel_labels is not None:
+            pixel_labels[y0:y1, x0:x1][pixels] = region.label
         m = cv2.moments(binary, binaryImage=True)
         if m["m00"] == 0:  # nothing of it inside (cannot happen with a region of the mask)
             grown.append(region)
@@ -160,7 +169,7 @@ def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
             bbox=(x0 + bx, y0 + by, gw, gh), area=int(m["m00"]),
             centroid=(m["m10"] / m["m00"] + x0, m["m01"] / m["m00"] + y0)))
     grown.sort(key=lambda reg: -reg.area)
-    return mask, grown
+    return (mask, grown, pixel_labels) if with_labels else (mask, grown)
 
 
 def _on_pixels(cells: NDArray[np.bool_], grid: int, crop: tuple[int, int, int, int]

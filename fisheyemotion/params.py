@@ -206,6 +206,17 @@ class Params:
         residual is unknown, and in a single pair (whose prediction is the road and the far
         field, wrong on structure beside the road), the likelihood decides (0.8.10). Measured
         in docs/evaluation.md, *Extent*.
+    road_spill : float
+        Mask pixels the road explains are trimmed from their regions
+        (:mod:`fisheyemotion.spill`): where, over the cell-sized block around a pixel, the
+        previous frame seen through the road point of its ray matches the current frame
+        within this mean absolute difference (grey levels), better than the motion the mask
+        carried the pixel with, and the road point has a cell of parallax. That is the flow's
+        smoothing of a moving object onto the road beside and below it. A region the trim
+        would split into two large pieces stays whole. Needs a known road and both frames;
+        the likelihood and ``Detection.cell_mask`` are not changed. 0 disables it
+        (``Params.paper()``; ``data/params/no_road_spill.yaml``). Chosen on the tuning street
+        (docs/evaluation.md, *Road spill*).
     ground_contact : bool
         Regions led by the anti-parallel term that stand on the road (the static range just
         below their lower edge is about their own) are static structure: their anti-parallel
@@ -400,6 +411,7 @@ class Params:
     extent_reach: float = 0.5
     extent_static: float = 0.1
     extent_residual: bool = True
+    road_spill: float = 15.0
     photometric_check: bool = True
     photometric_margin: float = 10.0
     photometric_tolerance: float = 0.25
@@ -458,7 +470,7 @@ class Params:
                      "threshold", "saturation", "fb_tolerance", "fb_relative", "min_texture",
                      "min_parallax", "seed_threshold", "extend_threshold", "contact_ratio",
                      "contact_arc", "range_consistency", "scene_sweep", "scene_sweep_margin",
-                     "extent_reach", "extent_static",
+                     "extent_reach", "extent_static", "road_spill",
                      "photometric_margin", "photometric_tolerance", "photometric_range_error",
                      "photometric_edge", "photometric_span",
                      "photometric_search",
@@ -519,7 +531,7 @@ class Params:
                       "ground_contact": False,
                       "significance": 0.0, "epipolar_significance": 0.0, "grow": 0,
                       "extent_reach": 0.0, "region_gap": 0, "second_pass": 0, "carry_share": 0.0,
-                      "receding": 0.0,
+                      "receding": 0.0, "road_spill": 0.0,
                       "photometric_check": False,
                       "fb_check": False,
                       "frame_gap": 1, "min_texture": 0.0,

@@ -41,6 +41,8 @@ CASES = {
     "no_pixel_carry.yaml": ("carry_share", 0.0, 0.6, 0.0, (-0.1, 1.5, float("nan"), "a"),
                             "carry_share: expected a number in"),
     "no_growth.yaml": ("grow", 0, 4, 0, (-1, 2.0, True), "grow: expected an integer >= 0"),
+    "no_road_spill.yaml": ("road_spill", 0.0, 15.0, 0.0, (-1.0, float("nan"), "a"),
+                           "road_spill: expected a finite number"),
 }
 
 
