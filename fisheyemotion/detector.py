@@ -1197,9 +1197,9 @@ class MotionDetector:
                 pixel_labels = np.where(mask > 0, grid_upsample(labels, p.grid, w, h), 0)
             carried = carrier.reshape(-1, 2)[np.maximum(source, 0)].reshape(carrier.shape)
             carried[source < 0] = np.nan
-            spill = road_explained(prev, curr, mask > 0, self.camera, *poses, road,
-                                  grid_upsample(carried, p.grid, w, h), window=p.grid,
-                                  tolerance=p.road_spill, still=res.static_camera)
+            spill = road_explained(prev, curr, mask > 0, self._rays0, self.camera, *poses,
+                                   road, carried, grid=p.grid, tolerance=p.road_spill,
+                                   still=res.static_camera)
             if spill.any():
                 mask, regions = trim_regions(pixel_labels, regions, spill, grid=p.grid)
         if not self._road_warned and self.road.known and self.ground is None \

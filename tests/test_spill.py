@@ -12,6 +12,7 @@ from scipy import ndimage
 
 import fisheyemotion as fm
 from fisheyemotion import synth
+from fisheyemotion.flow import grid_average, grid_centres
 from fisheyemotion.road import Road
 from fisheyemotion.segment import Region
 from fisheyemotion.spill import PIECE, road_explained, trim_regions
@@ -49,6 +50,18 @@ def _spill_case(scenario: str, gap: int = 3):
     return before, after, moving, mask, carried[iy, ix]
 
 
+RAYS = FRONT.unproject(grid_centres(FRONT.width, FRONT.height, GRID))[0]
+
+
+def _explained(before, after, mask, carried, road=None, *, pose1=None, still=False):
+    """:func:`road_explained` on a case's pair, its motion averaged over each cell (as the
+    detector carries cells)."""
+    return road_explained(_gray(before), _gray(after), mask, RAYS, FRONT, before.pose,
+                          after.pose if pose1 is None else pose1,
+                          Road() if road is None else road, grid_average(carried, GRID),
+                          grid=GRID, tolerance=15.0, still=still)
+
+
 def _inner(pixels, carried):
     """``pixels`` without those within a window (half a cell) of their boundary, whose
     window holds some background, and without those whose window came from outside the
@@ -64,8 +77,7 @@ def _inner(pixels, carried):
 
 def test_the_road_explains_the_spill_around_a_pedestrian_not_the_pedestrian():
     before, after, moving, mask, carried = _spill_case("crossing")
-    explained = road_explained(_gray(before), _gray(after), mask, FRONT, before.pose, after.pose,
-                               Road(), carried, window=GRID, tolerance=15.0)
+    explained = _explained(before, after, mask, carried)
     road = mask & ~moving & (after.ids == 0) & np.isfinite(after.range) & (after.range < 1e3)
     assert road.sum() > 200
     assert explained[road].mean() > 0.2
@@ -73,26 +85,22 @@ def test_the_road_explains_the_spill_around_a_pedestrian_not_the_pedestrian():
     assert not explained[~mask].any()
     # Without a road nothing is explained; without the margin over the carried motion, a plain
     # block both explain would be: the carried motion as good as the road's explains nothing.
-    assert not road_explained(_gray(before), _gray(after), mask, FRONT, before.pose, after.pose,
-                              Road.unknown(), carried, window=GRID, tolerance=15.0).any()
-    road_motion = np.full_like(carried, np.nan)
-    assert road_explained(_gray(before), _gray(after), mask, FRONT, before.pose, after.pose,
-                          Road(), road_motion, window=GRID, tolerance=15.0)[road].mean() > 0.5
+    assert not _explained(before, after, mask, carried, Road.unknown()).any()
+    no_motion = np.full_like(carried, np.nan)
+    assert _explained(before, after, mask, no_motion)[road].mean() > 0.5
 
 
 def test_without_parallax_the_road_explains_nothing():
     """Frames of the same pair with the second pose put back on the first: the road point of
     every ray is its point at infinity, and road and far field cannot be told apart."""
     before, after, moving, mask, carried = _spill_case("crossing")
-    assert not road_explained(_gray(before), _gray(after), mask, FRONT, before.pose, before.pose,
-                              Road(), carried, window=GRID, tolerance=15.0).any()
+    assert not _explained(before, after, mask, carried, pose1=before.pose).any()
 
 
 def test_a_still_camera_explains_every_static_pixel_road_or_not():
     before, after, moving, mask, carried = _spill_case("static_ego")
     static = mask & ~moving & np.isfinite(after.range)
-    explained = road_explained(_gray(before), _gray(after), mask, FRONT, before.pose, after.pose,
-                               Road.unknown(), carried, window=GRID, tolerance=15.0, still=True)
+    explained = _explained(before, after, mask, carried, Road.unknown(), still=True)
     assert explained[static & (after.ids > 0)].mean() > 0.5  # a parked car, not road
     assert explained[static].mean() > 0.5
     assert explained[_inner(moving, carried)].mean() < 0.02
