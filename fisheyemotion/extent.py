@@ -47,7 +47,7 @@ from numpy.typing import NDArray
 from .flow import grid_upsample
 from .segment import Region
 
-__all__ = ["grow_to_extent"]
+__all__ = ["grow_to_extent", "with_holes_filled"]
 
 #: Standard deviation (pixels) of the Gaussian the frame is smoothed by before the flooding.
 SMOOTHING = 1.0
@@ -153,7 +153,7 @@ def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
         markers[(core if core.any() else own) > 0] = 1
         flooded = cv2.watershed(cv2.cvtColor(smooth[y0:y1, x0:x1], cv2.COLOR_GRAY2BGR),
                                 markers)
-        pixels = _filled((flooded == 1) | (own > 0))
+        pixels = with_holes_filled((flooded == 1) | (own > 0))
         if inside is not None:
             pixels &= inside[y0:y1, x0:x1] > 0
         binary = pixels.view(np.uint8)
@@ -185,8 +185,9 @@ def _on_pixels(cells: NDArray[np.bool_], grid: int, crop: tuple[int, int, int, i
     return np.ascontiguousarray(up[y0 - top:y1 - top, x0 - left:x1 - left])
 
 
-def _filled(pixels: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    """``pixels`` with their holes filled: what the crop's border cannot reach around them."""
+def with_holes_filled(pixels: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """``pixels`` (a crop or an image) with their holes filled: what its border cannot reach
+    around them."""
     outside = cv2.copyMakeBorder((~pixels).view(np.uint8), 1, 1, 1, 1, cv2.BORDER_CONSTANT,
                                  value=1)
     cv2.floodFill(outside, None, (0, 0), 2, flags=8)

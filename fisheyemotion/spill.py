@@ -9,8 +9,8 @@ of them on the road (``docs/evaluation.md``, *Road spill*).
 The road is the one surface whose static motion is known at every pixel without a measurement:
 the plane and the two poses. A pixel ``y`` of the current frame whose ray meets the road at a
 point ``X`` in front of the camera was at ``x_r = project(R0^T (X - C0))`` in the previous
-frame if it is road. It is road spill when, averaged over the ``window`` x ``window`` block
-around it (the cell size):
+frame if it is road. It is road spill when, averaged over the ``grid`` x ``grid`` block around
+it (the cell size):
 
 1. the road explains it: ``mean |I1(y) - I0(x_r)| < tolerance`` (grey levels);
 2. better than the motion the mask carried it with, by ``MARGIN`` grey levels
@@ -32,14 +32,15 @@ the mask's parts only. Where the camera stood still
 between the frames, every static point moves as the rotation alone takes it, road or not: that
 is the hypothesis at every pixel (``still``), and there is no parallax to ask for.
 
-:func:`trim_regions` removes each region's explained pixels, unless that splits it into two or
-more pieces of ``PIECE`` cells or more: two parts of one object with road between them, or a
-pedestrian beside a vehicle in one region, where which piece is the object is not known, so the
-region stays whole. Otherwise the region keeps its largest piece (crumbs are dropped: a region
-broken into a piece and its crumbs would otherwise count as several) with what that piece
-encloses (explained pixels inside an object, a plain patch its carried motion got wrong, stay),
-and is dropped when all of it is explained. The likelihood maps and ``Detection.cell_mask``
-are not changed.
+:func:`trim_regions` removes the explained pixels from each connected part of the mask (an
+object and a region of its spill beside it are one part), unless that splits the part into two
+or more pieces of ``PIECE`` cells or more: two parts of one object with road between them, or a
+pedestrian beside a vehicle, where which piece is the object is not known, so the part stays
+whole. Otherwise the part keeps its largest piece (crumbs are dropped: a part broken into a
+piece and its crumbs would otherwise count as several regions) with what that piece encloses
+(explained pixels inside an object, a plain patch its carried motion got wrong, stay), and goes
+when all of it is explained. The regions keep their labels, their boxes shrink to what is left.
+The likelihood maps and ``Detection.cell_mask`` are not changed.
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .calib.base import CameraModel
-from .extent import _filled
+from .extent import with_holes_filled
 from .road import Road
 from .segment import Region
 
@@ -266,7 +267,7 @@ def trim_regions(pixel_labels: NDArray[np.int32], regions: list[Region],
         areas = np.bincount(pieces.ravel(), minlength=count)[1:]
         if np.count_nonzero(areas >= piece) >= 2:
             continue  # which piece is the object is not known: the part stays whole
-        left = (_filled(pieces == 1 + int(np.argmax(areas))) & own) if count > 1 \
+        left = (with_holes_filled(pieces == 1 + int(np.argmax(areas))) & own) if count > 1 \
             else np.zeros_like(own)
         kept[box] &= ~own | left
         changed[j] = True
