@@ -1354,7 +1354,8 @@ def _params_draws(title: str, changes: dict, draws: int, *, flow: str = "farneba
               + ", ".join(f"{s} {100 * v:.1f}" for s, v in sd["FP frames"].items()))
 
 
-def confirm_draws(settings=({}, {"confirm_reach": 8}, {"confirm_reach": 8, "threshold": 0.003}),
+def confirm_draws(settings=({}, {"confirm_reach": 8}, {"confirm_reach": 8, "threshold": 0.003},
+                            {"confirm_reach": 8, "range_consistency": 1.5}),
                   draws: int = 4, flows=("farneback", "dis")) -> None:
     """:func:`_params_draws` of region confirmation by the frame before
     (``Params.confirm_reach``, cells; :mod:`fisheyemotion.confirm`) and the likelihood
