@@ -38,8 +38,10 @@ or more pieces of ``PIECE`` cells or more: two parts of one object with road bet
 pedestrian beside a vehicle, where which piece is the object is not known, so the part stays
 whole. Otherwise the part keeps its largest piece (crumbs are dropped: a part broken into a
 piece and its crumbs would otherwise count as several regions) with what that piece encloses
-(explained pixels inside an object, a plain patch its carried motion got wrong, stay), and goes
-when all of it is explained. The regions keep their labels, their boxes shrink to what is left.
+(explained pixels inside an object, a plain patch its carried motion got wrong, stay), if that
+piece has ``PIECE`` cells or more; else the part goes: what the road leaves of it is no piece of
+an object (a false region on the road reaching a few cells onto the structure beside it, or a
+detection that was mostly its own spill). The regions keep their labels, their boxes shrink to what is left.
 The likelihood maps and ``Detection.cell_mask`` are not changed.
 """
 
@@ -60,7 +62,8 @@ __all__ = ["road_explained", "trim_regions", "MARGIN", "PARALLAX", "PIECE", "FAR
 MARGIN = 3.0
 #: Cells the road point's image must be from its point at infinity (its parallax).
 PARALLAX = 1.0
-#: Cells a piece must have for the split it makes to leave its region whole.
+#: Cells a piece left by the trim must have to count: two such pieces leave their part whole,
+#: and a part whose largest piece is smaller goes.
 PIECE = 16
 #: Metres beyond which a ray's road point is not used (a ray grazing the road's horizon).
 FAR = 100.0
@@ -267,8 +270,9 @@ def trim_regions(pixel_labels: NDArray[np.int32], regions: list[Region],
         areas = np.bincount(pieces.ravel(), minlength=count)[1:]
         if np.count_nonzero(areas >= piece) >= 2:
             continue  # which piece is the object is not known: the part stays whole
-        left = (with_holes_filled(pieces == 1 + int(np.argmax(areas))) & own) if count > 1 \
-            else np.zeros_like(own)
+        # Its largest piece, if that is one of an object; else the part goes.
+        left = (with_holes_filled(pieces == 1 + int(np.argmax(areas))) & own) \
+            if count > 1 and areas.max() >= piece else np.zeros_like(own)
         kept[box] &= ~own | left
         changed[j] = True
     mask[crop] = kept.view(np.uint8) * np.uint8(255)

@@ -151,6 +151,15 @@ def test_trim_leaves_a_region_whole_where_it_would_split_it_and_drops_crumbs():
     big[5:5 + side, 5:5 + side] = True
     np.testing.assert_array_equal(mask > 0, big)
     assert [r.bbox for r in kept] == [(5, 5, side, side)]
+    # What the road leaves is smaller than a piece of an object: the region goes.
+    labels[:] = 0
+    labels[5:5 + side, 5:5 + side + 20] = 1
+    labels[5:9, 5 + side + 20:5 + side + 24] = 1
+    small = labels > 0
+    small[:, 5:5 + side - 4] &= False               # only a few cells left beside the road
+    explained_small = (labels > 0) & ~small | explained
+    mask, kept = trim_regions(labels, regions, explained_small & (labels > 0), grid=GRID)
+    assert not mask.any() and kept == []
     # All of it road: the region goes.
     mask, kept = trim_regions(labels, regions, labels > 0, grid=GRID)
     assert not mask.any() and kept == []
