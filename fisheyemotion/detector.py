@@ -1195,10 +1195,8 @@ class MotionDetector:
             # where the images show it.
             if pixel_labels is None:
                 pixel_labels = np.where(mask > 0, grid_upsample(labels, p.grid, w, h), 0)
-            carried = carrier.reshape(-1, 2)[np.maximum(source, 0)].reshape(carrier.shape)
-            carried[source < 0] = np.nan
             spill = road_explained(prev, curr, mask > 0, self._rays0, self.camera, *poses,
-                                   road, carried, grid=p.grid, tolerance=p.road_spill,
+                                   road, now(carrier), grid=p.grid, tolerance=p.road_spill,
                                    still=res.static_camera)
             if spill.any():
                 mask, regions = trim_regions(pixel_labels, regions, spill, grid=p.grid)

@@ -53,6 +53,7 @@ from numpy.typing import NDArray
 
 from .calib.base import CameraModel
 from .extent import with_holes_filled
+from .flow import grid_upsample
 from .road import Road
 from .segment import Region
 
@@ -149,8 +150,8 @@ def road_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8], pixels: NDA
     at_cells = np.where(ok[..., None], at, np.nan).astype(np.float32)
     at_pixels = _padded(cv2.resize(at_cells, (n_cols * grid, n_rows * grid),
                                    interpolation=cv2.INTER_LINEAR), bottom - top, right - left)
-    moved = _padded(np.repeat(np.repeat(motion[r0:r1, c0:c1].astype(np.float32), grid, axis=0),
-                              grid, axis=1), bottom - top, right - left)
+    moved = grid_upsample(np.ascontiguousarray(motion[r0:r1, c0:c1], dtype=np.float32), grid,
+                          right - left, bottom - top)
     window = np.ones((grid, grid), np.uint8)
     for x, y, bw, bh in boxes:
         y0, y1, x0, x1 = max(0, y - half), min(h, y + bh + half), max(0, x - half), \
