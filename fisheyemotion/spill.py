@@ -228,6 +228,7 @@ def trim_regions(pixel_labels: NDArray[np.int32], regions: list[Region],
     pixel_labels : ndarray of int32, shape (H, W)
         Each region's pixels by its ``label`` (0: none); the mask is where it is not 0.
     regions : list of Region
+        Each region's pixels lie within its ``bbox`` (the work is done within their union).
     explained : ndarray of bool, shape (H, W)
         Pixels :func:`road_explained` found.
     grid : int
