@@ -212,8 +212,10 @@ class Params:
         previous frame seen through the road point of its ray matches the current frame
         within this mean absolute difference (grey levels), better than the motion the mask
         carried the pixel with, and the road point has a cell of parallax. That is the flow's
-        smoothing of a moving object onto the road beside and below it. A region the trim
-        would split into two large pieces stays whole. Needs a known road and both frames;
+        smoothing of a moving object onto the road beside and below it. With the camera
+        still, every static pixel likewise (the rotation alone is the hypothesis). A region
+        the trim would split into two large pieces stays whole; one it leaves less than
+        ``spill.PIECE`` cells of goes. Needs a known road (or a still camera) and both frames;
         the likelihood and ``Detection.cell_mask`` are not changed. 0 disables it
         (``Params.paper()``; ``data/params/no_road_spill.yaml``). Chosen on the tuning street
         (docs/evaluation.md, *Road spill*).
