@@ -81,3 +81,17 @@ def test_the_confirmed_three_views_file_adds_the_three_view_test_at_one_and_a_ha
     assert fm.Params.load(FOLDER / "confirmed_three_views.yaml") == fm.Params(
         confirm_reach=8, range_consistency=1.5)
     assert fm.Params().range_consistency == 0
+
+
+def test_docs_api_names_every_setting_and_every_params_file():
+    """docs/api.md's map of the settings (*Parameters*) names every field of ``Params`` and
+    every file of ``data/params``: a setting or a file added without it fails here."""
+    import dataclasses
+    import re
+
+    text = (FOLDER.parents[1] / "docs" / "api.md").read_text(encoding="utf-8")
+    section = text[text.index("## Parameters"):text.index("## The engine alone")]
+    named = set(re.findall(r"`([a-z_0-9.]+)", section))
+    fields = {f.name for f in dataclasses.fields(fm.Params)}
+    assert fields - named == set()
+    assert {p.name for p in FOLDER.glob("*.yaml")} - named == set()
