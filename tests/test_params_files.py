@@ -3,6 +3,8 @@ and the setting it names refuses bad values with its name (docs/evaluation.md qu
 
 from __future__ import annotations
 
+import dataclasses
+import re
 from pathlib import Path
 
 import pytest
@@ -86,9 +88,6 @@ def test_the_confirmed_three_views_file_adds_the_three_view_test_at_one_and_a_ha
 def test_docs_api_names_every_setting_and_every_params_file():
     """docs/api.md's map of the settings (*Parameters*) names every field of ``Params`` and
     every file of ``data/params``: a setting or a file added without it fails here."""
-    import dataclasses
-    import re
-
     text = (FOLDER.parents[1] / "docs" / "api.md").read_text(encoding="utf-8")
     section = text[text.index("## Parameters"):text.index("## The engine alone")]
     named = set(re.findall(r"`([a-z_0-9.]+)", section))
