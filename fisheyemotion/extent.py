@@ -45,7 +45,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .flow import grid_upsample
-from .segment import Region
+from .segment import Region, with_pixels
 
 __all__ = ["grow_to_extent", "with_holes_filled"]
 
@@ -160,14 +160,8 @@ def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
         mask[y0:y1, x0:x1] |= binary * np.uint8(255)
         if pixel_labels is not None:
             pixel_labels[y0:y1, x0:x1][pixels] = region.label
-        m = cv2.moments(binary, binaryImage=True)
-        if m["m00"] == 0:  # nothing of it inside (cannot happen with a region of the mask)
-            grown.append(region)
-            continue
-        bx, by, gw, gh = cv2.boundingRect(binary)
-        grown.append(region._replace(
-            bbox=(x0 + bx, y0 + by, gw, gh), area=int(m["m00"]),
-            centroid=(m["m10"] / m["m00"] + x0, m["m01"] / m["m00"] + y0)))
+        # A region with no pixel inside (not possible for a region of the mask) stays as it was.
+        grown.append(with_pixels(region, binary, x0, y0) if pixels.any() else region)
     grown.sort(key=lambda reg: -reg.area)
     return (mask, grown, pixel_labels) if with_labels else (mask, grown)
 

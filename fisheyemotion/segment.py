@@ -33,6 +33,16 @@ class Region(NamedTuple):
     centroid: tuple[float, float]
 
 
+def with_pixels(region: Region, pixels: NDArray[np.uint8], x: int, y: int) -> Region:
+    """``region`` (label and mean likelihood kept) with the box, area and centroid of
+    ``pixels``, a 0/1 crop whose top-left pixel is ``(x, y)`` of the image; at least one pixel
+    set."""
+    m = cv2.moments(pixels, binaryImage=True)
+    bx, by, bw, bh = cv2.boundingRect(pixels)
+    return region._replace(bbox=(x + bx, y + by, bw, bh), area=int(m["m00"]),
+                           centroid=(m["m10"] / m["m00"] + x, m["m01"] / m["m00"] + y))
+
+
 def segment_cells(cell_likelihood: NDArray[np.float64], *, threshold: float, grid: int,
                   min_area: int, age: NDArray | None = None, persistence: int = 1,
                   seed_threshold: float = 0.0, extend_threshold: float = 0.0,

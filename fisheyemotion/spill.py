@@ -55,7 +55,7 @@ from .calib.base import CameraModel
 from .extent import with_holes_filled
 from .flow import grid_upsample
 from .road import Road
-from .segment import Region
+from .segment import Region, with_pixels
 
 __all__ = ["road_explained", "trim_regions", "MARGIN", "PARALLAX", "PIECE", "FAR"]
 
@@ -289,10 +289,6 @@ def trim_regions(pixel_labels: NDArray[np.int32], regions: list[Region],
         left = own & kept[box]
         if not left.any():
             continue
-        binary = left.view(np.uint8)
-        m = cv2.moments(binary, binaryImage=True)
-        bx, by, gw, gh = cv2.boundingRect(binary)
-        out.append(region._replace(bbox=(x + bx, y + by, gw, gh), area=int(m["m00"]),
-                                   centroid=(m["m10"] / m["m00"] + x, m["m01"] / m["m00"] + y)))
+        out.append(with_pixels(region, left.view(np.uint8), x, y))
     out.sort(key=lambda reg: -reg.area)
     return mask, out
