@@ -45,7 +45,7 @@ ROUNDS = 100
 #: Methods of MotionDetector, then functions as the detector module calls them.
 METHODS = ("_measure", "_decide", "_assemble", "_explain_standing", "_textured_cells",
            "_supported_off_arc", "_grown", "_temporal_filter", "_static_prior", "_one_flow",
-           "_second_pass", "_receding", "_span_explained")
+           "_second_pass", "_receding", "_span_explained", "_three_views")
 FUNCTIONS = ("constraints", "cell_sigma", "triangulate_range", "grid_upsample", "grow_to_extent",
              "static_explained", "cell_residual", "grid_transfer", "pixel_transfer",
              "segment_cells", "grid_average", "warp_by", "second_flow", "better_explained",

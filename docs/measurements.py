@@ -1354,12 +1354,13 @@ def _params_draws(title: str, changes: dict, draws: int, *, flow: str = "farneba
               + ", ".join(f"{s} {100 * v:.1f}" for s, v in sd["FP frames"].items()))
 
 
-def confirm_draws(settings=({}, {"confirm_reach": 8}, {"confirm_reach": 8, "threshold": 0.003},
-                            {"confirm_reach": 8, "range_consistency": 1.5}),
+def confirm_draws(settings=({"confirm_reach": 0, "range_consistency": 0.0}, {},
+                            {"range_consistency": 0.0}, {"range_consistency_alone": 1.5}),
                   draws: int = 4, flows=("farneback", "dis")) -> None:
     """:func:`_params_draws` of region confirmation by the frame before
-    (``Params.confirm_reach``, cells; :mod:`fisheyemotion.confirm`) and the likelihood
-    threshold with it: each of ``settings`` (``Params`` changes) with each of ``flows``."""
+    (``Params.confirm_reach``, cells; :mod:`fisheyemotion.confirm`) and the three-view test
+    with it: each of ``settings`` (``Params`` changes: ``data/params/unconfirmed.yaml``, the
+    defaults, ``no_three_views.yaml``, ``three_views_unchecked.yaml``) with each of ``flows``."""
     for flow in flows:
         for changes in settings:
             title = ", ".join(f"{k} {v:g}" for k, v in changes.items()) or "defaults"

@@ -54,6 +54,7 @@ ADDITIONS = {
     "+ second flow pass": {"second_pass": 2},
     "+ pixels carried by their own flow": {"carry_share": 0.6},
     "+ receding regions": {"receding": 2.0},
+    "+ confirmed by the frame before": {"confirm_reach": 8},
 }
 
 #: Ablation: weights (mu_e, mu_d, mu_h, mu_p) of each variant; "paper" is the configured Params.

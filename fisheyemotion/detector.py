@@ -123,6 +123,10 @@ class _Measured(NamedTuple):
     # update; None outside streams or while the model is empty): the static prediction of the
     # growth and of the two-span test's candidates.
     scene_ranges: NDArray[np.float64] | None = None
+    # The cells the three-view test raised by less than ``params.range_consistency_alone``,
+    # and the pair's own likelihood they keep unless the photometric check finds them a seed.
+    views_alone: NDArray[np.bool_] | None = None
+    pair_likelihood: NDArray[np.float64] | None = None
 
 
 class MotionDetector:
@@ -604,7 +608,7 @@ class MotionDetector:
         if p.min_texture > 0 and gray is not None:
             valid &= self._textured_cells(gray)
         static_flow = None  # before the scene model learns from this pair (the prior uses it)
-        decided = along_travel = span_before = scene_ranges = None
+        decided = along_travel = span_before = scene_ranges = views_alone = pair_only = None
         spans = stream and p.photometric_span > 0 and gray is not None and curr is not None
         if stream and (p.grow > 0 or spans) and self.scene is not None and len(self.scene):
             # the model as the pair's prior read it, before this pair's update
@@ -664,8 +668,9 @@ class MotionDetector:
                 along_travel = raised if along_travel is None else along_travel | raised
             pair_only = likelihood  # the pair's own evidence, which the scene model learns from
             if three:
-                likelihood = self._three_views(likelihood, valid & conditioned, ranges,
-                                               range_error, cell_flow, gray, curr, t0, t1)
+                likelihood, views_alone = self._three_views(
+                    likelihood, valid & conditioned, ranges, range_error, cell_flow, gray, curr,
+                    t0, t1)
             if keep_scene:
                 with np.errstate(invalid="ignore"):
                     static = valid & (pair_only < p.threshold)
@@ -681,7 +686,8 @@ class MotionDetector:
                          self._prior_road(t0, t1) if p.grow > 0 else None, stream,
                          p.min_texture > 0 and curr is not None and bool(self._history)
                          and self._history[-1][0] is curr, informed, decided, own_flow,
-                         span_before, along_travel, scene_ranges)
+                         span_before, along_travel, scene_ranges,
+                         views_alone if static_flow is not None else None, pair_only)
 
     def _decide(self, m: _Measured) -> Detection:
         """A measured pair's result: the photometric check's seeds, the growth and the
@@ -736,6 +742,12 @@ class MotionDetector:
             if p.photometric_span > 0 and m.span_before is not None and seeds.any() \
                     and not res.static_camera:
                 seeds &= ~self._span_explained(m, seeds, measured)
+            if m.views_alone is not None:
+                # Raised by three views alone, explained by the images: weak evidence.
+                weak = m.views_alone & ~seeds
+                if weak.any():
+                    likelihood = np.where(weak, m.pair_likelihood, likelihood)
+                    m = m._replace(likelihood=likelihood)
         if p.second_pass > 0 and m.own_flow and gray is not None and curr is not None \
                 and not res.static_camera:
             likelihood = self._second_pass(m, seeds)
@@ -1048,24 +1060,27 @@ class MotionDetector:
         return np.fmax(likelihood, raised)
 
     def _three_views(self, likelihood, usable, ranges, range_error, cell_flow, prev, curr,
-                     t0, t1) -> NDArray[np.float64]:
+                     t0, t1) -> tuple[NDArray[np.float64], NDArray[np.bool_] | None]:
         """The likelihood raised where a cell's range disagrees with the static point the
         previous pair landed in it, by ``params.range_consistency`` flow-error sigmas or more
-        (:mod:`fisheyemotion.range_consistency`); and this pair's static cells remembered for
-        the pair whose previous frame ``curr`` will be."""
+        (:mod:`fisheyemotion.range_consistency`), and the cells raised by less than
+        ``params.range_consistency_alone`` (None: none raised); and this pair's static cells
+        remembered for the pair whose previous frame ``curr`` will be."""
         p = self.params
         usable = usable & np.isfinite(ranges) & (ranges < p.prior_distance)
         z = self._ranges.deviation(prev, ranges, range_error, t0[:3, 3])
+        alone = None
         if z is not None:
             with np.errstate(invalid="ignore"):
-                raised = np.where(usable & (z > p.range_consistency),
-                                  p.threshold * z / p.range_consistency, np.nan)
+                beyond = usable & (z > p.range_consistency)
+                raised = np.where(beyond, p.threshold * z / p.range_consistency, np.nan)
+                alone = beyond & (z < p.range_consistency_alone) & (raised > likelihood)
             likelihood = np.fmax(likelihood, raised)
         with np.errstate(invalid="ignore"):
             static = usable & (likelihood < p.threshold)
         self._ranges.remember(curr, world_points(self._rays0, ranges, t0), range_error,
                               self._centres + cell_flow, static, p.grid, t1[:3, 3])
-        return likelihood
+        return likelihood, alone
 
     def _at_cell_centres(self, image: NDArray) -> NDArray:
         """A full-resolution map ``(H, W, ...)`` read at each cell's centre pixel (exact for odd

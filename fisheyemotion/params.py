@@ -245,12 +245,24 @@ class Params:
         its raw angle alone would keep it above the threshold at 1-2 sigmas. Needs
         ``epipolar_significance > 0``.
     range_consistency : float
-        Streams only, 0 (off) by default: flow-error sigmas by which a cell's range may disagree
-        with the range the previous pair triangulated for the static point that landed in it
+        Streams only: flow-error sigmas by which a cell's range may disagree with the range
+        the previous pair triangulated for the static point that landed in it
         (:mod:`fisheyemotion.range_consistency`: three views of a static point agree, of a point
         moving along its epipolar arc do not); a cell at this many reaches the threshold. The
-        scene model still stores the cells it alone raises. Measured, not the default
-        (``docs/evaluation.md``, *Three views*).
+        scene model still stores the cells it alone raises. 1.5 (0.8.22); 0: off
+        (``Params.paper()``; ``data/params/no_three_views.yaml``). Measured in
+        ``docs/evaluation.md`` (*Three views*, *Confirmed by the frame before*).
+    range_consistency_alone : float
+        Flow-error sigmas a cell's three-view disagreement needs where it is the cell's only
+        evidence: the photometric check explains the cell by the static scene (it is not a
+        seed). Below this the cell keeps the pair's own likelihood. The three views' error
+        model is exceeded on static cells beside the objects (a flow smeared across an
+        object's outline, the far road), and their raised cells joined the objects' regions
+        as larger masks; a pedestrian walking along its arc, which the images do not tell from
+        a static point, reads further off (``docs/evaluation.md``, *Three views where the
+        images explain the cell*). Needs the photometric check; at or below
+        ``range_consistency`` every raise counts (0.8.21's opt-in,
+        ``data/params/three_views_unchecked.yaml``).
     scene_sweep : float
         Streams only, 0 (off) by default: grey levels. A cell about to enter the scene model
         whose measured flow explains the frames worse than this (mean absolute residual) is
@@ -292,8 +304,12 @@ class Params:
         many consecutive detections (carried by the flow). 1 (default) reports at once.
     confirm_reach : int
         Cells. Streams only: a region is reported only where the stream's previous result had a
-        region (reported or not) within this many cells (:mod:`fisheyemotion.confirm`). 0
-        (default): off.
+        region (reported or not) within this many cells (:mod:`fisheyemotion.confirm`): the
+        track confirmation of a radar or lidar tracker, which drops the flow errors on static
+        structure that do not repeat, and reports every object one result after it is first
+        flagged. 8 (0.8.22); 0: off, every region reported at once (``Params.paper()``;
+        ``data/params/no_confirmation.yaml``). Measured in ``docs/evaluation.md``
+        (*Confirmed by the frame before*).
     visibility_check : bool
         Cells whose static-scene point (the ego prior's prediction: the road, or
         ``prior_distance`` above the horizon) leaves the current view -- outside the image, the
@@ -429,7 +445,8 @@ class Params:
     contact_columns: int = 3
     contact_arc: float = 0.03
     contact_epipolar: bool = True
-    range_consistency: float = 0.0
+    range_consistency: float = 1.5
+    range_consistency_alone: float = 3.0
     scene_sweep: float = 0.0
     scene_sweep_margin: float = 5.0
     scene_prior: bool = True
@@ -439,7 +456,7 @@ class Params:
     min_texture: float = 2.0
     temporal_decay: float = 0.3
     persistence: int = 1
-    confirm_reach: int = 0
+    confirm_reach: int = 8
     visibility_check: bool = False
     min_parallax: float = 0.0
     fb_check: bool = False
@@ -471,7 +488,8 @@ class Params:
         for name in ("lambda_h", "lambda_p", "lambda_p_ratio", "min_baseline", "epipole_margin",
                      "threshold", "saturation", "fb_tolerance", "fb_relative", "min_texture",
                      "min_parallax", "seed_threshold", "extend_threshold", "contact_ratio",
-                     "contact_arc", "range_consistency", "scene_sweep", "scene_sweep_margin",
+                     "contact_arc", "range_consistency", "range_consistency_alone",
+                     "scene_sweep", "scene_sweep_margin",
                      "extent_reach", "extent_static", "road_spill",
                      "photometric_margin", "photometric_tolerance", "photometric_range_error",
                      "photometric_edge", "photometric_span",
@@ -533,7 +551,8 @@ class Params:
                       "ground_contact": False,
                       "significance": 0.0, "epipolar_significance": 0.0, "grow": 0,
                       "extent_reach": 0.0, "region_gap": 0, "second_pass": 0, "carry_share": 0.0,
-                      "receding": 0.0, "road_spill": 0.0,
+                      "receding": 0.0, "road_spill": 0.0, "range_consistency": 0.0,
+                      "confirm_reach": 0,
                       "photometric_check": False,
                       "fb_check": False,
                       "frame_gap": 1, "min_texture": 0.0,

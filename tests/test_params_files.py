@@ -45,6 +45,10 @@ CASES = {
     "no_growth.yaml": ("grow", 0, 4, 0, (-1, 2.0, True), "grow: expected an integer >= 0"),
     "no_road_spill.yaml": ("road_spill", 0.0, 15.0, 0.0, (-1.0, float("nan"), "a"),
                            "road_spill: expected a finite number"),
+    "no_confirmation.yaml": ("confirm_reach", 0, 8, 0, (-1, 8.0, True),
+                             "confirm_reach: expected an integer >= 0"),
+    "no_three_views.yaml": ("range_consistency", 0.0, 1.5, 0.0, (-1.0, float("nan"), "a"),
+                            "range_consistency: expected a finite number"),
 }
 
 
@@ -74,15 +78,19 @@ def test_the_fewer_false_alarms_file_asks_two_seeds_of_anti_parallel_led_regions
             fm.Params(antiparallel_seeds=bad)
 
 
-def test_the_confirmed_file_asks_a_region_of_the_frame_before_within_eight_cells():
-    assert fm.Params.load(FOLDER / "confirmed.yaml") == fm.Params(confirm_reach=8)
-    assert fm.Params().confirm_reach == 0 and fm.Params.paper().confirm_reach == 0
+def test_the_unconfirmed_file_is_the_defaults_before_confirmation_and_three_views():
+    assert fm.Params.load(FOLDER / "unconfirmed.yaml") == fm.Params(confirm_reach=0,
+                                                                     range_consistency=0.0)
 
 
-def test_the_confirmed_three_views_file_adds_the_three_view_test_at_one_and_a_half_sigmas():
-    assert fm.Params.load(FOLDER / "confirmed_three_views.yaml") == fm.Params(
-        confirm_reach=8, range_consistency=1.5)
-    assert fm.Params().range_consistency == 0
+def test_the_unchecked_three_views_file_lets_every_three_view_raise_count():
+    unchecked = fm.Params.load(FOLDER / "three_views_unchecked.yaml")
+    assert unchecked == fm.Params(range_consistency_alone=1.5)
+    assert unchecked.range_consistency_alone <= unchecked.range_consistency
+    assert fm.Params().range_consistency_alone == 3.0
+    for bad in (-1.0, float("inf"), "a"):
+        with pytest.raises(ValueError, match="range_consistency_alone: expected a finite number"):
+            fm.Params(range_consistency_alone=bad)
 
 
 def test_docs_api_names_every_setting_and_every_params_file():

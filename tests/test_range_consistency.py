@@ -112,9 +112,9 @@ def test_the_documented_params_file_turns_it_on_and_bad_values_are_refused():
 
     import fisheyemotion as fm
 
-    path = Path(__file__).resolve().parents[1] / "data" / "params" / "three_views.yaml"
-    assert fm.Params.load(path).range_consistency == 2.0
-    assert fm.Params().range_consistency == 0.0 == fm.Params.paper().range_consistency
+    path = Path(__file__).resolve().parents[1] / "data" / "params" / "no_three_views.yaml"
+    assert fm.Params.load(path).range_consistency == 0.0 == fm.Params.paper().range_consistency
+    assert fm.Params().range_consistency == 1.5
     with pytest.raises(ValueError, match="range_consistency"):
         fm.Params(range_consistency=-1.0)
 

@@ -360,8 +360,10 @@ def test_a_pedestrian_stepping_out_between_parked_cars_keeps_the_scene_models_ve
 
     cam = tumvi_kb(640, 480, 200.0)
     # What the constraints flag, not grown (on the image or by the flow) nor trimmed: a false
-    # region beside the pedestrian grown onto it would count as finding it.
-    flagged = fm.Params(extent_reach=0.0, grow=0, road_spill=0.0)
+    # region beside the pedestrian grown onto it would count as finding it. Each pair's own
+    # evidence, unconfirmed and without the three views.
+    flagged = fm.Params(extent_reach=0.0, grow=0, road_spill=0.0, confirm_reach=0,
+                        range_consistency=0.0)
     veto_only = _exact_flow_run(tmp_path / "a", cam, STEP_OUT, flagged.replace(contact_arc=0.0),
                                 16)
     with_arc = _exact_flow_run(tmp_path / "b", cam, STEP_OUT, flagged, 16)
