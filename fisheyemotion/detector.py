@@ -1064,8 +1064,8 @@ class MotionDetector:
         """The likelihood raised where a cell's range disagrees with the static point the
         previous pair landed in it, by ``params.range_consistency`` flow-error sigmas or more
         (:mod:`fisheyemotion.range_consistency`), and the cells raised by less than
-        ``params.range_consistency_alone`` (None: none raised); and this pair's static cells
-        remembered for the pair whose previous frame ``curr`` will be."""
+        ``params.range_consistency_alone`` (None where ``prev`` was not remembered); and this
+        pair's static cells remembered for the pair whose previous frame ``curr`` will be."""
         p = self.params
         usable = usable & np.isfinite(ranges) & (ranges < p.prior_distance)
         z = self._ranges.deviation(prev, ranges, range_error, t0[:3, 3])
