@@ -21,7 +21,10 @@ with the world point that landed in the cell::
 ``e_before`` the two relative range errors: the flow's angular error over the rays' parallax,
 :mod:`fisheyemotion.significance`). ``z`` counts the disagreement in units of what the flows'
 errors explain; the detector raises a cell with ``z`` above ``params.range_consistency`` to the
-threshold and beyond, as it does the significance of the height and depth deviations. Per
+threshold and beyond, as it does the significance of the height and depth deviations. Where the
+photometric check explains the cell by the static scene, the raise counts only from
+``params.range_consistency_alone``: a flow smeared across an object's outline, or the far road,
+exceeds the error model on static cells by less than a crossing pedestrian does. Per
 point, not per sample of the static-scene model, whose medians mix the two ranges of a depth
 discontinuity. Cells without a stored point (nothing static landed there, or the frame was
 never a current frame of this detector) have no ``z`` (NaN).
