@@ -686,8 +686,7 @@ class MotionDetector:
                          self._prior_road(t0, t1) if p.grow > 0 else None, stream,
                          p.min_texture > 0 and curr is not None and bool(self._history)
                          and self._history[-1][0] is curr, informed, decided, own_flow,
-                         span_before, along_travel, scene_ranges,
-                         views_alone if static_flow is not None else None, pair_only)
+                         span_before, along_travel, scene_ranges, views_alone, pair_only)
 
     def _decide(self, m: _Measured) -> Detection:
         """A measured pair's result: the photometric check's seeds, the growth and the
