@@ -208,3 +208,26 @@ def block_residuals(prev, curr, flow, rows, cols, grid, shift, out):
                 bottom = curr[yb, xa] + fx * (np.float64(curr[yb, xb]) - curr[yb, xa])
                 total += abs(prev[y, x] - (top + fy * (bottom - top)))
         out[i] = total * inv
+
+
+@numba.njit(cache=True, nogil=True)
+def landed_pixels(flow, rows, cols, number, grid, n_rows, n_cols, count, top):
+    """For :func:`fisheyemotion.flow.pixel_transfer`: every pixel of cells ``(rows[i], cols[i])``
+    moved by its own ``flow`` (float32, (H, W, 2)) lands in the cell
+    ``floor((x + flow + 0.5) / grid)``; ``count`` (n_rows * n_cols,) counts the pixels landing on
+    each cell and ``top`` (the same, -1 to start) keeps the largest ``number[i]`` among them.
+    Pixels whose target is not finite or not on the grid land nowhere. The arithmetic is numpy's
+    (float64 sums of the integer pixel and the float32 flow), so the cells are the same."""
+    for i in range(rows.shape[0]):
+        for dy in range(grid):
+            y = rows[i] * grid + dy
+            for dx in range(grid):
+                x = cols[i] * grid + dx
+                tc = np.floor((x + np.float64(flow[y, x, 0]) + 0.5) / grid)
+                tr = np.floor((y + np.float64(flow[y, x, 1]) + 0.5) / grid)
+                if not (tc >= 0 and tc < n_cols and tr >= 0 and tr < n_rows):
+                    continue
+                t = int(tr) * n_cols + int(tc)
+                count[t] += 1
+                if number[i] > top[t]:
+                    top[t] = number[i]

@@ -30,9 +30,11 @@ __all__ = ["CHILD", "HERE", "start", "wait"]
 CHILD = (("fisheyemotion._engine_kernel", "constraint_kernel"),
          ("fisheyemotion._grid_kernels", "transfer"))
 #: Compiled by :func:`start` in this process while the child runs: the photometric check's
-#: residuals and the cells' flow variance (0.8 s), which the first detection would compile later.
+#: residuals, the cells' flow variance (0.8 s) and the pixels' landing cells of a stream's
+#: transfer, which the first detection would compile later.
 HERE = (("fisheyemotion._grid_kernels", "block_residuals"),
-        ("fisheyemotion._grid_kernels", "cell_variance"))
+        ("fisheyemotion._grid_kernels", "cell_variance"),
+        ("fisheyemotion._grid_kernels", "landed_pixels"))
 
 _TIMEOUT = 120.0  # seconds; after that this process compiles the kernels itself
 _lock = threading.Lock()
@@ -124,3 +126,8 @@ def compile(kernels) -> None:
         from .significance import cell_sigma
 
         cell_sigma(flow, 5, np.ones((2, 2)), floor=0.5, mean=np.zeros((2, 2, 2), np.float32))
+    if "landed_pixels" in names:
+        from .flow import pixel_transfer
+
+        pixel_transfer(np.full((2, 2), -1, np.intp), flow, np.zeros((2, 2)),
+                       np.ones((2, 2), bool), 5, share=0.5)

@@ -169,30 +169,25 @@ def pixel_transfer(source: NDArray[np.intp], flow: NDArray[np.float32], order: N
     rows, cols = source.shape
     if not cells.any():
         return source
+    from ._grid_kernels import landed_pixels  # numba on first use: a light import
+
+    _warmup.wait()
+
     rank = np.where(np.isnan(order), -np.inf, order).ravel()
-    # The pixels of the cells, row-major within each cell's block (one block per cell).
     r, c = np.nonzero(cells)
-    dy, dx = np.divmod(np.arange(grid * grid), grid)
-    ys = (r[:, None] * grid + dy).ravel()
-    xs = (c[:, None] * grid + dx).ravel()
-    moved = flow[ys, xs]
-    with np.errstate(invalid="ignore"):
-        # Pixel centres are integers: pixel q lies in cell floor((q + 0.5) / grid).
-        tc = np.floor((xs + moved[:, 0] + 0.5) / grid)
-        tr = np.floor((ys + moved[:, 1] + 0.5) / grid)
-        ok = (tc >= 0) & (tc < cols) & (tr >= 0) & (tr < rows)
-    if not ok.any():
-        return source
-    target = (tr[ok] * cols + tc[ok]).astype(np.intp)
-    count = np.bincount(target, minlength=rows * cols)
     # The most likely cell landing on each target: the moved cells numbered by rank (ties by
     # index), each pixel carrying its cell's number, the largest number per target.
     flat = r * cols + c
     ranked = np.lexsort((flat, rank[flat]))  # the moved cells, least likely first
     number = np.empty(len(flat), np.intp)
     number[ranked] = np.arange(len(flat))
+    count = np.zeros(rows * cols, np.intp)
     top = np.full(rows * cols, -1, np.intp)
-    np.maximum.at(top, target, np.repeat(number, grid * grid)[ok])
+    # Pixel centres are integers: pixel q lies in cell floor((q + 0.5) / grid).
+    landed_pixels(np.ascontiguousarray(flow, np.result_type(flow.dtype, np.float32)), r, c, number, int(grid), rows, cols,
+                  count, top)
+    if not (top >= 0).any():
+        return source
     best = np.where(top >= 0, flat[ranked][np.maximum(top, 0)], -1)
     out = source.ravel().copy()
     current = np.where(out >= 0, rank[np.maximum(out, 0)], -np.inf)

@@ -142,9 +142,10 @@ def smooth_columns(per_column: NDArray[np.float64], columns: int) -> NDArray[np.
     width = 2 * columns + 1
     padded = np.pad(per_column, ((0, 0), (columns, columns)), constant_values=np.nan)
     windows = np.lib.stride_tricks.sliding_window_view(padded, width, axis=1)
-    n, cols = per_column.shape
-    out = row_nanpercentile(windows.reshape(n * cols, width), 50.0).reshape(n, cols)
-    return np.where(np.isfinite(per_column), out, np.nan)
+    finite = np.nonzero(np.isfinite(per_column))  # only these are smoothed
+    out = np.full(per_column.shape, np.nan)
+    out[finite] = row_nanpercentile(windows[finite], 50.0)
+    return out
 
 
 def standing_regions(moving: NDArray[np.bool_], antiparallel_share: NDArray[np.float64],
