@@ -56,6 +56,9 @@ SMOOTHING = 1.0
 #: the moving spoon stirs, would be flooded from the spoon otherwise; docs/evaluation.md).
 SLOWER = 0.35
 _CROSS = np.ones((3, 3), np.uint8)
+#: Pixels of frame around a crop that its smoothing reads (the 8-bit Gaussian's radius, 3
+#: sigmas, and one more).
+_BLUR_MARGIN = int(np.ceil(3 * SMOOTHING)) + 1
 
 
 def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
@@ -117,7 +120,6 @@ def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
     pixel_labels = np.zeros((h, w), np.int32) if with_labels else None
     if not regions:
         return (mask, [], pixel_labels) if with_labels else (mask, [])
-    smooth = cv2.GaussianBlur(gray, (0, 0), SMOOTHING)
     static_below = np.float32(static_fraction * threshold)
     if residual is not None:
         speed = np.sqrt(residual[..., 0] ** 2 + residual[..., 1] ** 2)
@@ -151,8 +153,7 @@ def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
         markers[:, 0] = markers[:, -1] = 2
         core = cv2.erode(own, _CROSS)
         markers[(core if core.any() else own) > 0] = 1
-        flooded = cv2.watershed(cv2.cvtColor(smooth[y0:y1, x0:x1], cv2.COLOR_GRAY2BGR),
-                                markers)
+        flooded = cv2.watershed(cv2.cvtColor(_smoothed(gray, crop), cv2.COLOR_GRAY2BGR), markers)
         pixels = with_holes_filled((flooded == 1) | (own > 0))
         if inside is not None:
             pixels &= inside[y0:y1, x0:x1] > 0
@@ -164,6 +165,20 @@ def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
         grown.append(with_pixels(region, binary, x0, y0) if pixels.any() else region)
     grown.sort(key=lambda reg: -reg.area)
     return (mask, grown, pixel_labels) if with_labels else (mask, grown)
+
+
+def _smoothed(gray: NDArray[np.uint8], crop: tuple[int, int, int, int]) -> NDArray[np.uint8]:
+    """``crop = (y0, y1, x0, x1)`` of ``gray`` smoothed by the Gaussian of :data:`SMOOTHING`
+    pixels: the same pixels as a crop of the whole frame smoothed (OpenCV's kernel reaches
+    3 sigmas for 8-bit images; the crop is smoothed with :data:`_BLUR_MARGIN` pixels around
+    it, or the frame's own edge), at a crop's cost."""
+    y0, y1, x0, x1 = crop
+    h, w = gray.shape
+    top, left = max(0, y0 - _BLUR_MARGIN), max(0, x0 - _BLUR_MARGIN)
+    bottom, right = min(h, y1 + _BLUR_MARGIN), min(w, x1 + _BLUR_MARGIN)
+    smooth = cv2.GaussianBlur(np.ascontiguousarray(gray[top:bottom, left:right]), (0, 0),
+                              SMOOTHING)
+    return np.ascontiguousarray(smooth[y0 - top:y1 - top, x0 - left:x1 - left])
 
 
 def _on_pixels(cells: NDArray[np.bool_], grid: int, crop: tuple[int, int, int, int]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
@@ -50,6 +52,15 @@ class FlowEstimator:
         return cv2.calcOpticalFlowFarneback(
             prev, curr, flow, fb["pyr_scale"], int(fb["levels"]), int(fb["winsize"]),
             int(fb["iterations"]), int(fb["poly_n"]), fb["poly_sigma"], flags)
+
+
+@functools.lru_cache(maxsize=4)
+def pixel_grid(height: int, width: int) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
+    """Every pixel's x and y coordinate, float32 ``(height, width)`` each, read-only: made once
+    per image size, and cut into the maps of the boxes that are warped."""
+    xs, ys = np.meshgrid(np.arange(width, dtype=np.float32), np.arange(height, dtype=np.float32))
+    xs.flags.writeable = ys.flags.writeable = False
+    return xs, ys
 
 
 def grid_shape(width: int, height: int, grid: int) -> tuple[int, int]:

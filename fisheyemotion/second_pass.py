@@ -23,13 +23,14 @@ which of the two measurements holds, in either direction.
 
 from __future__ import annotations
 
-import functools
 from collections import OrderedDict
 from collections.abc import Callable
 
 import cv2
 import numpy as np
 from numpy.typing import NDArray
+
+from .flow import pixel_grid
 
 __all__ = ["BETTER_BY", "MARGIN", "SIZE_STEP", "BoxFlows", "better_explained", "near_cells",
            "second_flow"]
@@ -137,7 +138,7 @@ def second_flow(prev: NDArray[np.uint8], curr: NDArray[np.uint8], flow: NDArray[
         x0, x1 = _span(c0 * grid, (c0 + cw) * grid, w, size_step)
         y0, y1 = _span(r0 * grid, (r0 + ch) * grid, h, size_step)
         box = flow[y0:y1, x0:x1]
-        grid_x, grid_y = (g[y0:y1, x0:x1] for g in _pixel_grid(h, w))
+        grid_x, grid_y = (g[y0:y1, x0:x1] for g in pixel_grid(h, w))
         map_x, map_y = grid_x + box[..., 0], grid_y + box[..., 1]
         # Where the first pass has no finite flow the box keeps the previous frame: no residual.
         finite = np.isfinite(map_x) & np.isfinite(map_y)
@@ -186,15 +187,6 @@ def better_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8],
     after = cell_residual(prev, curr, second, grid, cells)[rows, cols]
     with np.errstate(invalid="ignore"):
         return after < before - BETTER_BY
-
-
-@functools.lru_cache(maxsize=4)
-def _pixel_grid(height: int, width: int) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
-    """The pixels' x and y coordinates (float32, ``(height, width)`` each; read-only), which
-    the boxes' maps are cut from."""
-    xs, ys = np.meshgrid(np.arange(width, dtype=np.float32), np.arange(height, dtype=np.float32))
-    xs.flags.writeable = ys.flags.writeable = False
-    return xs, ys
 
 
 def _span(lo: int, hi: int, size: int, step: int) -> tuple[int, int]:

@@ -53,7 +53,7 @@ from numpy.typing import NDArray
 
 from .calib.base import CameraModel
 from .extent import with_holes_filled
-from .flow import grid_upsample
+from .flow import grid_upsample, pixel_grid
 from .road import Road
 from .segment import Region, with_pixels
 
@@ -157,7 +157,7 @@ def road_explained(prev: NDArray[np.uint8], curr: NDArray[np.uint8], pixels: NDA
         y0, y1, x0, x1 = max(0, y - half), min(h, y + bh + half), max(0, x - half), \
             min(w, x + bw + half)
         here = curr[y0:y1, x0:x1].astype(np.float32)
-        v, u = np.mgrid[y0:y1, x0:x1].astype(np.float32)
+        u, v = (g[y0:y1, x0:x1] for g in pixel_grid(h, w))
         to_road = at_pixels[y0 - top:y1 - top, x0 - left:x1 - left]
         road_diff = _difference(prev, here, to_road[..., 0], to_road[..., 1])
         carried = moved[y0 - top:y1 - top, x0 - left:x1 - left]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -9,7 +10,7 @@ from hypothesis import strategies as st
 
 import fisheyemotion as fm
 from fisheyemotion import synth
-from fisheyemotion.extent import SLOWER, grow_to_extent
+from fisheyemotion.extent import SLOWER, SMOOTHING, _smoothed, grow_to_extent
 from fisheyemotion.segment import segment_cells
 
 from .cameras import tumvi_kb
@@ -227,3 +228,17 @@ def test_the_documented_coverage_file_adds_the_extension():
     more = fm.Params.load(Path(__file__).resolve().parents[1] / "data" / "params"
                           / "coverage.yaml")
     assert more == fm.Params(extend_threshold=0.002)
+
+
+@given(st.integers(0, 2**31 - 1))
+@settings(max_examples=60, deadline=None)
+def test_a_crop_is_smoothed_as_the_whole_frame_is(seed):
+    """The flooding's smoothing is done per crop (with the Gaussian's reach around it): the
+    same pixels as the whole frame smoothed, at the frame's edges too."""
+    rng = np.random.default_rng(seed)
+    h, w = (int(v) for v in rng.integers(3, 90, 2))
+    gray = rng.integers(0, 256, (h, w)).astype(np.uint8)
+    y0, x0 = int(rng.integers(0, h)), int(rng.integers(0, w))
+    y1, x1 = int(rng.integers(y0 + 1, h + 1)), int(rng.integers(x0 + 1, w + 1))
+    whole = cv2.GaussianBlur(gray, (0, 0), SMOOTHING)
+    np.testing.assert_array_equal(_smoothed(gray, (y0, y1, x0, x1)), whole[y0:y1, x0:x1])

@@ -99,6 +99,11 @@ def test_a_cell_only_ever_takes_a_more_likely_source_whose_pixels_cover_it(seed,
         assert here.sum() >= share * G * G
         assert out[r, c] in origin[here]
         assert rank[out[r, c]] == rank[origin[here]].max()
+    # ... and an unchanged cell is one that is not covered enough, or whose most likely landing
+    # cell is no more likely than its source.
+    for r, c in np.argwhere(~changed):
+        here = landed == r * cols + c
+        assert here.sum() < share * G * G or rank[origin[here]].max() <= before[r, c]
 
 
 @pytest.fixture(scope="module")
