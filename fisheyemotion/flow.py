@@ -195,8 +195,8 @@ def pixel_transfer(source: NDArray[np.intp], flow: NDArray[np.float32], order: N
     count = np.zeros(rows * cols, np.intp)
     top = np.full(rows * cols, -1, np.intp)
     # Pixel centres are integers: pixel q lies in cell floor((q + 0.5) / grid).
-    landed_pixels(np.ascontiguousarray(flow, np.result_type(flow.dtype, np.float32)), r, c, number, int(grid), rows, cols,
-                  count, top)
+    landed_pixels(np.ascontiguousarray(flow, np.result_type(flow.dtype, np.float32)), r, c,
+                  number, int(grid), rows, cols, count, top)
     if not (top >= 0).any():
         return source
     best = np.where(top >= 0, flat[ranked][np.maximum(top, 0)], -1)
