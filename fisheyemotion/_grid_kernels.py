@@ -231,3 +231,36 @@ def landed_pixels(flow, rows, cols, number, grid, n_rows, n_cols, count, top):
                 count[t] += 1
                 if number[i] > top[t]:
                     top[t] = number[i]
+
+
+@numba.njit(cache=True, nogil=True)
+def nearest_landed(points, error, landing, static, grid, centre, kept_points, kept_error):
+    """For :meth:`fisheyemotion.range_consistency.RangeMemory.remember`: a z-buffer. Each
+    ``static`` cell (rows, cols) with finite ``error`` and world point ``points`` (rows, cols,
+    3) lands in the cell ``floor(landing / grid)`` of ``landing`` (rows, cols, 2; pixels) if
+    that is on the grid; each cell of ``kept_points`` / ``kept_error`` (NaN to start) keeps the
+    point nearest ``centre`` (3,) among those landing on it (of equal ones the last in
+    row-major order, as the stable sort the numpy version wrote by)."""
+    rows, cols = static.shape
+    best = np.full((rows, cols), np.inf)
+    for r in range(rows):
+        for c in range(cols):
+            if not static[r, c]:
+                continue
+            tc = np.floor(landing[r, c, 0] / grid)
+            tr = np.floor(landing[r, c, 1] / grid)
+            if not (tc >= 0 and tc < cols and tr >= 0 and tr < rows):
+                continue
+            e = error[r, c]
+            x, y, z = points[r, c, 0], points[r, c, 1], points[r, c, 2]
+            if not (np.isfinite(e) and np.isfinite(x) and np.isfinite(y) and np.isfinite(z)):
+                continue
+            dx, dy, dz = x - centre[0], y - centre[1], z - centre[2]
+            d = np.sqrt(dx * dx + (dy * dy + dz * dz))  # numpy's norm's order of sums
+            i, j = int(tr), int(tc)
+            if d <= best[i, j]:
+                best[i, j] = d
+                kept_points[i, j, 0] = x
+                kept_points[i, j, 1] = y
+                kept_points[i, j, 2] = z
+                kept_error[i, j] = e

@@ -68,20 +68,16 @@ class RangeMemory:
         ``static`` cells at the cells their flows' ends ``landing`` ``(rows, cols, 2)`` (pixels
         of that frame) fall in; where several land in one cell, the point nearest the frame's
         camera centre ``centre`` (3,) (it hides the others)."""
+        from ._grid_kernels import nearest_landed  # numba on first use: a light import
+
         rows, cols = static.shape
-        with np.errstate(invalid="ignore"):
-            c = np.floor(landing[..., 0] / grid)
-            r = np.floor(landing[..., 1] / grid)
-            inside = static & (c >= 0) & (c < cols) & (r >= 0) & (r < rows) \
-                & np.isfinite(error) & np.isfinite(points).all(axis=-1)
         kept_points = np.full((rows, cols, 3), np.nan)
         kept_error = np.full((rows, cols), np.nan)
-        if inside.any():
-            ri, ci = r[inside].astype(np.intp), c[inside].astype(np.intp)
-            p, e = points[inside], error[inside]
-            order = np.argsort(-np.linalg.norm(p - centre, axis=-1), kind="stable")
-            kept_points[ri[order], ci[order]] = p[order]  # the nearest is written last
-            kept_error[ri[order], ci[order]] = e[order]
+        nearest_landed(np.ascontiguousarray(points, np.float64),
+                       np.ascontiguousarray(error, np.float64),
+                       np.ascontiguousarray(landing, np.float64), np.ascontiguousarray(static),
+                       int(grid), np.ascontiguousarray(centre, np.float64), kept_points,
+                       kept_error)
         self._kept.append((frame, kept_points, kept_error))
 
     def deviation(self, frame: NDArray, ranges: NDArray[np.float64], error: NDArray[np.float64],
