@@ -30,12 +30,13 @@ __all__ = ["CHILD", "HERE", "start", "wait"]
 CHILD = (("fisheyemotion._engine_kernel", "constraint_kernel"),
          ("fisheyemotion._grid_kernels", "transfer"))
 #: Compiled by :func:`start` in this process while the child runs: the photometric check's
-#: residuals, the cells' flow variance (0.8 s), the pixels' landing cells of a stream's
-#: transfer and the three views' z-buffer, which the first detection would compile later.
+#: residuals, the cells' flow variance (0.8 s) and the pixels' landing cells of the transfer to
+#: the current frame (0.16 s), which the first detection would compile later. (A stream's own
+#: kernels, e.g. the three views' z-buffer, compile at its first pair: 0.4 s more here would
+#: delay every first detect().)
 HERE = (("fisheyemotion._grid_kernels", "block_residuals"),
         ("fisheyemotion._grid_kernels", "cell_variance"),
-        ("fisheyemotion._grid_kernels", "landed_pixels"),
-        ("fisheyemotion._grid_kernels", "nearest_landed"))
+        ("fisheyemotion._grid_kernels", "landed_pixels"))
 
 _TIMEOUT = 120.0  # seconds; after that this process compiles the kernels itself
 _lock = threading.Lock()
@@ -132,8 +133,3 @@ def compile(kernels) -> None:
 
         pixel_transfer(np.full((2, 2), -1, np.intp), flow, np.zeros((2, 2)),
                        np.ones((2, 2), bool), 5, share=0.5)
-    if "nearest_landed" in names:
-        from .range_consistency import RangeMemory
-
-        RangeMemory(1).remember(frame, np.zeros((2, 2, 3)), np.zeros((2, 2)),
-                                np.zeros((2, 2, 2)), np.ones((2, 2), bool), 5, np.ones(3))

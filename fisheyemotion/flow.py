@@ -182,8 +182,6 @@ def pixel_transfer(source: NDArray[np.intp], flow: NDArray[np.float32], order: N
         return source
     from ._grid_kernels import landed_pixels  # numba on first use: a light import
 
-    _warmup.wait()
-
     rank = np.where(np.isnan(order), -np.inf, order).ravel()
     r, c = np.nonzero(cells)
     # The most likely cell landing on each target: the moved cells numbered by rank (ties by

@@ -16,8 +16,8 @@ from fisheyemotion import _warmup
 ROOT = Path(__file__).resolve().parents[1]
 CALIB = str(ROOT / "data" / "calib" / "front_kb_640x480.yaml")
 
-# A first detection (and a stream's first pair) in a new process: which kernels of the
-# warm-up's groups ran, and whether each came from the cache (numba's dispatcher statistics).
+# A first detection in a new process: which kernels of the warm-up's groups ran, and whether
+# each came from the cache (numba's dispatcher statistics).
 FIRST_DETECTION = """
 import json, sys
 import numpy as np
@@ -30,11 +30,7 @@ curr = np.roll(prev, 3, axis=1)
 pose0, pose1 = np.eye(4), np.eye(4)
 pose0[:3, 3] = [0.0, -1.0, 0.0]
 pose1[:3, 3] = [0.0, -1.0, 0.5]
-road = fm.Road(normal=(0, -1, 0), offset=0.0)
-fm.detect(prev, curr, pose0, pose1, camera=cam, road=road)
-stream = fm.MotionDetector(cam, road, fm.Params(frame_gap=1))  # and what only streams run
-for frame, pose in ((prev, pose0), (curr, pose1)):
-    stream.apply(frame, pose)
+fm.detect(prev, curr, pose0, pose1, camera=cam, road=fm.Road(normal=(0, -1, 0), offset=0.0))
 stats = {}
 for module, name in _warmup.CHILD + _warmup.HERE:
     kernel = getattr(sys.modules[module], name)
