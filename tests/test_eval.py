@@ -187,6 +187,20 @@ def test_end_to_end_report(sequences, tmp_path):
     assert wide.set_index("category").loc["false positives", "dis_frames"] == 12
     abl = pd.read_csv(tmp_path / "report" / "ablation.csv")
     assert {"epipolar only", "depth only", "height only", "antiparallel only"} <= set(abl.variant)
+    # Detection by visible size: every counted object-frame in exactly one size class, and each
+    # class's share detected as the object rows say.
+    objs = pd.read_csv(tmp_path / "report" / "objects.csv")
+    sizes = pd.read_csv(tmp_path / "report" / "sizes.csv")
+    counted = sizes.groupby(["flow", "category"])["object-frames"].sum()
+    assert counted[counted > 0].to_dict() == objs.groupby(["flow", "category"]).size().to_dict()
+    for r in sizes[sizes["object-frames"] > 0].itertuples(index=False):
+        lo, hi = (int(v) for v in re.findall(r"\d+", r.size)) if "-" in r.size else (
+            int(re.findall(r"\d+", r.size)[0]), np.inf)
+        hi = hi + 1 if np.isfinite(hi) else hi
+        here = objs[(objs.flow == r.flow) & (objs.category == r.category)
+                    & (objs.pixels >= lo) & (objs.pixels < hi)]
+        assert len(here) == r[3] and here.detected.mean() == pytest.approx(r.detected)
+    assert "## Detection by visible size" in md
 
 
 def test_the_exact_flow_is_reported_beside_a_flow_method(sequences, tmp_path):
