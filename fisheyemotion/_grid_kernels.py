@@ -264,3 +264,71 @@ def nearest_landed(points, error, landing, static, grid, centre, kept_points, ke
                 kept_points[i, j, 1] = y
                 kept_points[i, j, 2] = z
                 kept_error[i, j] = e
+
+
+@numba.njit(cache=True, nogil=True)
+def grown_labels(components, n, residual, valid, steps, tolerance, relative, out):
+    """For :func:`fisheyemotion.grow.grow_regions`: ``components`` (rows, cols; OpenCV's labels
+    ``1..n``, 0 elsewhere) renumbered in the raster order of each region's first cell, then grown
+    ``steps`` rings into ``valid`` cells whose ``residual`` (rows, cols, 2; NaN: unknown) is like
+    the region's mean (over its cells with a known residual, divided by all its cells); a cell
+    two regions reach takes the larger number. ``out`` (rows, cols) gets the grown labels. The
+    arithmetic is numpy's (the sums in raster order, the norms' order of sums, ``nan_to_num``'s
+    infinities), so the cells are the same as the numpy version's."""
+    rows, cols = components.shape
+    big = np.finfo(np.float64).max
+    order = np.zeros(n + 1, np.int64)
+    k = 0
+    for r in range(rows):
+        for c in range(cols):
+            lab = components[r, c]
+            if lab > 0 and order[lab] == 0:
+                k += 1
+                order[lab] = k
+    res = np.empty((rows, cols, 2))
+    known = np.empty((rows, cols), np.bool_)
+    count = np.zeros(n + 1, np.int64)
+    sums = np.zeros((n + 1, 2))
+    for r in range(rows):
+        for c in range(cols):
+            lab = order[components[r, c]]
+            out[r, c] = lab
+            count[lab] += 1
+            for i in range(2):
+                v = residual[r, c, i]
+                res[r, c, i] = np.inf if v != v else (big if v == np.inf else (-big if v == -np.inf else v))
+            known[r, c] = np.isfinite(res[r, c, 0]) and np.isfinite(res[r, c, 1])
+            if lab > 0 and known[r, c]:
+                sums[lab, 0] += res[r, c, 0]
+                sums[lab, 1] += res[r, c, 1]
+    mean = np.zeros((n + 1, 2))
+    norm = np.zeros(n + 1)
+    for lab in range(n + 1):
+        m = max(count[lab], 1)
+        mean[lab, 0] = sums[lab, 0] / m
+        mean[lab, 1] = sums[lab, 1] / m
+        norm[lab] = np.sqrt(mean[lab, 0] * mean[lab, 0] + mean[lab, 1] * mean[lab, 1])
+    before = out.copy()
+    for _ in range(steps):
+        before[:, :] = out
+        changed = False
+        for r in range(rows):
+            for c in range(cols):
+                if before[r, c] != 0 or not (valid[r, c] and known[r, c]):
+                    continue
+                lab = 0
+                for dr in range(-1, 2):
+                    for dc in range(-1, 2):
+                        rr, cc = r + dr, c + dc
+                        if 0 <= rr < rows and 0 <= cc < cols and before[rr, cc] > lab:
+                            lab = before[rr, cc]
+                if lab == 0:
+                    continue
+                dx, dy = res[r, c, 0] - mean[lab, 0], res[r, c, 1] - mean[lab, 1]
+                far = np.sqrt(dx * dx + dy * dy)
+                own = np.sqrt(res[r, c, 0] * res[r, c, 0] + res[r, c, 1] * res[r, c, 1])
+                if far <= tolerance + relative * norm[lab] and own >= 0.5 * norm[lab]:
+                    out[r, c] = lab
+                    changed = True
+        if not changed:
+            break

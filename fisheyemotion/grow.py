@@ -22,9 +22,6 @@ from numpy.typing import NDArray
 
 __all__ = ["grow_regions", "reach"]
 
-_SQUARE = np.ones((3, 3), np.uint8)
-
-
 def grow_regions(moving: NDArray[np.bool_], residual: NDArray[np.float64],
                  valid: NDArray[np.bool_], *, steps: int, tolerance: float = 2.0,
                  relative: float = 0.5) -> NDArray[np.bool_]:
@@ -69,46 +66,15 @@ def reach(moving: NDArray[np.bool_], steps: int) -> tuple[slice, slice] | None:
 
 def _grown(moving, residual, valid, steps, tolerance, relative) -> NDArray[np.bool_]:
     """:func:`grow_regions` on a grid holding every cell it can change."""
-    # OpenCV's labelling (8-connected; no scipy or scikit-image import in a detection),
-    # renumbered in the raster order of each region's first cell: where two regions reach the
-    # same cell, the later one takes it.
+    from ._grid_kernels import grown_labels  # numba on first use: a light import
+
+    # OpenCV's labelling (8-connected; no scipy or scikit-image import in a detection); the
+    # kernel renumbers it in the raster order of each region's first cell: where two regions
+    # reach the same cell, the later one takes it.
     n, labels = cv2.connectedComponents(np.ascontiguousarray(moving, dtype=np.uint8),
                                         connectivity=8, ltype=cv2.CV_32S)
-    n -= 1
-    first = np.full(n + 1, labels.size)  # the first cell of each label, raster order
-    present, at = np.unique(labels, return_index=True)
-    first[present] = at
-    order = np.empty(n + 1, np.intp)
-    order[0] = 0
-    order[1 + np.argsort(first[1:], kind="stable")] = np.arange(1, n + 1)
-    labels = order[labels]
-    res = np.nan_to_num(residual, nan=np.inf)
-    flat = labels.ravel()
-    count = np.maximum(np.bincount(flat, minlength=n + 1), 1)
-    known = np.isfinite(res).all(axis=-1)
-    finite = known.ravel() & (flat > 0)
-    mean = np.zeros((n + 1, 2))
-    for i in range(2):
-        mean[:, i] = np.bincount(flat[finite], weights=res.reshape(-1, 2)[finite, i],
-                                 minlength=n + 1) / count
-    norm = np.linalg.norm(mean, axis=-1)
-    grown = labels.copy()
-    open_ = valid & known
-    for _ in range(steps):
-        # The largest label among each cell's 8 neighbours and itself (0 beyond the grid):
-        # labels are exact in float32 up to 2**24.
-        near = cv2.dilate(grown.astype(np.float32), _SQUARE, borderType=cv2.BORDER_CONSTANT,
-                          borderValue=0).astype(np.intp)
-        cand = (grown == 0) & (near > 0) & open_
-        if not cand.any():
-            break
-        lab = near[cand]
-        r = res[cand]
-        target = mean[lab]
-        ok = (np.linalg.norm(r - target, axis=-1) <= tolerance + relative * norm[lab]) & (
-            np.linalg.norm(r, axis=-1) >= 0.5 * norm[lab])
-        if not ok.any():
-            break
-        rows, cols = np.nonzero(cand)
-        grown[rows[ok], cols[ok]] = lab[ok]
+    grown = np.empty(labels.shape, np.int64)
+    grown_labels(labels, n - 1, np.ascontiguousarray(residual, np.float64),
+                 np.ascontiguousarray(valid, np.bool_), int(steps), float(tolerance),
+                 float(relative), grown)
     return grown > 0
