@@ -98,7 +98,10 @@ def diagnose(results: list[SequenceResult], params: Params) -> list[str]:
                 f"in view (paper {_pct(paper.loc[cat, 'detection_rate'])}); fewest in "
                 f"`{by_seq.index[0]}` ({_pct(by_seq.iloc[0])} of its {cat} object-frames). Where "
                 f"they are missed, their mean likelihood is {total:.4f} (threshold "
-                f"{params.threshold:g}), {_pct(share.max())} of it from the {lead} term.")
+                f"{params.threshold:g}), {_pct(share.max())} of it from the {lead} term; "
+                f"{int((missed.pixels < SIZE_BOUNDS[2]).sum())} of its {len(missed)} missed "
+                f"object-frames are under {SIZE_BOUNDS[2]} pixels (*Detection by visible "
+                "size*).")
         fp_rate = ours.loc["false positives", "detection_rate"]
         if fp_rate > paper.loc["false positives", "detection_rate"]:
             by_seq = f.groupby("sequence").fp_frame.mean().sort_values()

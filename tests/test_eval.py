@@ -358,3 +358,29 @@ def test_dask_workers_get_glibc_malloc_thresholds_back():
     if platform.libc_ver()[0] != "glibc":
         pytest.skip("not glibc")
     assert restore_malloc_thresholds() is True
+
+
+def test_size_table_and_the_shortfall_notes_count_small_objects():
+    """Hand-made object rows: the size classes split them at 500 / 1000 / 2000 pixels, and the
+    note on a category below the paper's rate counts its missed object-frames under 1000 px."""
+    from fisheyemotion.eval.evaluate import SequenceResult
+    from fisheyemotion.eval.report import diagnose, size_table
+
+    pixels = [100, 499, 500, 999, 1000, 1999, 2000, 5000]
+    detected = [False, False, True, False, False, True, True, True]
+    objects = pd.DataFrame({"id": 1, "category": "crossing", "distance": 5.0, "pixels": pixels,
+                            "covered": 0, "coverage": 0.5, "detected": detected,
+                            "sequence": "s", "frame": range(8), "c_epipolar": 0.001,
+                            "c_depth": 0.0, "c_height": 0.0, "c_antiparallel": 0.0})
+    frames = pd.DataFrame({"fp_frame": [False] * 8, "static_flagged": [0.0] * 8,
+                           "sequence": "s", "frame": range(8)})
+    result = SequenceResult("s", "farneback", objects, frames, np.zeros(10), np.zeros(10), 1, 1)
+    sizes = size_table([result]).set_index(["category", "size"])
+    crossing = sizes.loc["crossing"]
+    assert list(crossing["object-frames"]) == [2, 2, 2, 2]
+    assert list(crossing.detected) == [0.0, 0.5, 0.5, 1.0]
+    assert sizes.loc["preceding", "object-frames"].sum() == 0
+    notes = diagnose([result], fm.Params())
+    crossing_note = [n for n in notes if "crossing objects" in n]
+    assert len(crossing_note) == 1 and "3 of its 4 missed object-frames are under 1000" in (
+        crossing_note[0])
