@@ -18,4 +18,4 @@ __all__ = [
     "ConstraintResult", "Detection", "Grid", "MotionDetector", "Params", "Region", "Road",
     "calib", "constraints", "detect",
 ]
-__version__ = "0.8.23"
+__version__ = "0.8.24"
