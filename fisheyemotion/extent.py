@@ -9,8 +9,9 @@ mask belongs to says its object ends:
 
 1. Around each region, a crop of the frame reaching ``reach`` times the region's larger box
    side beyond its box (at least ``min_reach`` pixels): the growth's limit.
-2. Markers: the region's pixels eroded by one pixel (the object); the crop's border (the ring
-   inside its outermost pixels, which OpenCV's watershed keeps as watershed lines), every
+2. Markers: the region's pixels eroded by one pixel (the object); the crop's border where the
+   reach ends it, not at the frame's edge, beyond which the object may go on (the ring inside
+   the outermost pixels, which OpenCV's watershed keeps as watershed lines), every
    pixel of the crop outside the region whose likelihood is below ``static_fraction`` times the
    threshold (scored far below it, or not scored at all: no texture, outside the domain) and,
    given the cells' residual flows (measured minus the static scene's), the pixels of cells
@@ -150,10 +151,17 @@ def grow_to_extent(labels: NDArray[np.int32], regions: list[Region], grid: int,
                     background &= ~(_on_pixels(np.isfinite(speed[cells]), grid, crop) > 0)
                 background |= _on_pixels(slower, grid, crop) > 0
         markers[background & (own == 0)] = 2
-        # The crop's border: cv2.watershed makes the image's outermost pixels watershed lines
-        # (-1), overwriting any marker there, so the background ring is the one inside them.
-        markers[1, :] = markers[-2, :] = 2
-        markers[:, 1] = markers[:, -2] = 2
+        # The crop's border where the reach ends it (at the frame's edge the object may go on):
+        # cv2.watershed makes the image's outermost pixels watershed lines (-1), overwriting
+        # any marker there, so the background ring is the one inside them.
+        if y0 > 0:
+            markers[1, :] = 2
+        if y1 < h:
+            markers[-2, :] = 2
+        if x0 > 0:
+            markers[:, 1] = 2
+        if x1 < w:
+            markers[:, -2] = 2
         core = cv2.erode(own, _CROSS)
         markers[(core if core.any() else own) > 0] = 1
         flooded = cv2.watershed(cv2.cvtColor(_smoothed(gray, crop), cv2.COLOR_GRAY2BGR), markers)

@@ -82,17 +82,23 @@ def test_growth_never_leaves_the_reach_nor_loses_a_pixel(seed, reach):
 
 def test_the_crops_border_is_background_where_nothing_else_is():
     """With no background marker inside the crop (the background scored weakly, no residuals),
-    the crop's border still is one: the growth stops at the object's image boundary, not at the
-    crop (cv2.watershed overwrites the outermost pixels' markers)."""
+    the crop's border where the reach ends it still is one: the growth stops at the object's
+    image boundary, not at the crop (cv2.watershed overwrites the outermost pixels' markers).
+    The frame's own edge is not a marker: an object may go on beyond it."""
     gray, cells = _scene()
     cells[:] = 0.5 * THRESHOLD                 # nothing is far below the threshold
     cells[6:11, 8:14] = 2 * THRESHOLD
-    mask, _, before, _ = _grown(gray, cells, reach=2.0)
     obj = np.zeros((H, W), bool)
     obj[30:80, 40:100] = True
+    # The crop (36 px around the region's box) ends inside the frame but at its top.
+    mask, _, before, _ = _grown(gray, cells, reach=1.2)
     assert mask[obj].mean() > 0.9
     assert (mask & ~obj).sum() < 0.03 * obj.sum()
     assert mask[before].all()
+    # The crop is the whole frame: no border is a marker, and the growth reaches the frame's
+    # edges (but their outermost pixels, which the watershed keeps as lines).
+    mask, *_ = _grown(gray, cells, reach=3.0)
+    assert mask[1:-1, 1:-1].all()
 
 
 def test_unscored_pixels_join_only_as_enclosed_holes():
@@ -226,7 +232,7 @@ def test_a_stream_grows_over_the_parts_its_residuals_say_move_with_the_object():
         static[on] = sum(((r.mask > 0) & ~obj).sum() for r, obj in results if r)
     assert (covered[True] >= covered[False]).all()
     assert covered[True].sum() > 1.02 * covered[False].sum()    # measured 1.04
-    assert static[True] < 1.05 * static[False]                  # measured 1.01
+    assert static[True] < 1.05 * static[False]                  # measured 1.03
 
 
 def test_extent_parameters_are_checked_and_off_in_the_papers_pipeline():
